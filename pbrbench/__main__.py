@@ -1,0 +1,5 @@
+import sys
+
+from pbrbench.cli.main import main
+
+sys.exit(main())

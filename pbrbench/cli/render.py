@@ -1,0 +1,68 @@
+"""``pbrbench render SCENE...``: render ground truth (cached) and write EXRs and PNG previews."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+import time
+from pathlib import Path
+
+from pbrbench.cli.common import RenderProgress, add_cache, add_quality, add_variant, apply_env
+from pbrbench.errors import UserError
+
+
+def register(sub):
+    p = sub.add_parser("render", help="render scenes' ground truth (cached) with EXR + PNG previews")
+    p.add_argument("scenes", nargs="*", metavar="SCENE", help="scene name, family (file stem) or path to a .toml file")
+    p.add_argument("--all", action="store_true", help="render the whole scene library")
+    add_quality(p)
+    add_variant(p)
+    add_cache(p)
+    p.add_argument("--out", default=None, help="write gt.exr, gt.json and PNG previews here, one folder per scene")
+    p.add_argument("--force", action="store_true", help="re-render even if cached")
+    p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
+    p.set_defaults(func=run)
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+
+
+def run(args) -> int:
+    apply_env(args)
+    from pbrbench.render.cache import RenderCache, ground_truth
+    from pbrbench.render.groundtruth import _Renderer  # noqa: F401 - imports mitsuba lazily later
+    from pbrbench.render.previews import write_previews
+    from pbrbench.scene.load import load_library, resolve
+
+    if args.all:
+        specs = list(load_library().values())
+    elif args.scenes:
+        specs = resolve(args.scenes)
+    else:
+        raise UserError("render: name at least one SCENE (see `pbrbench scenes`) or pass --all")
+    cache = RenderCache(args.cache)
+    t_all = time.perf_counter()
+    rows = []
+    for spec in specs:
+        n_passes = 3 + 2 * len(spec.light_set) + int(spec.has_occluders) + int(spec.has_glossy)
+        prog = RenderProgress(n_passes, spec.name)
+        t0 = time.perf_counter()
+        gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force, progress=prog)
+        prog.close()
+        dt = time.perf_counter() - t0
+        where = cache.entry_dir(gt.meta["cache_key"])
+        if args.out:
+            d = Path(args.out) / _safe(spec.name)
+            d.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(where / "gt.exr", d / "gt.exr")
+            (d / "gt.json").write_text(json.dumps(gt.meta, indent=1, sort_keys=True))
+            if not args.no_previews:
+                write_previews(gt, d)
+            where = d
+        noise = gt.meta.get("noise", {}).get("radiance_rel_sd_rms", float("nan"))
+        rows.append((spec.name, "cache" if cached else f"{gt.meta['wall_s']:.1f}s", noise))
+        print(f"{spec.name:44s} {'cached' if cached else 'rendered':8s} {dt:7.2f}s  noise {noise:.2e}  {where}", flush=True)
+    print(f"{len(specs)} scene(s) in {time.perf_counter() - t_all:.1f}s ({args.quality}, variant {gt.meta.get('variant')})", file=sys.stderr)
+    return 0

@@ -1,0 +1,131 @@
+"""Content-addressed render cache: one directory per ground truth, written atomically.
+
+Key: sha256 of (canonical scene spec hash, quality, variant, mitsuba version, ground-truth format).
+Entry: ``<root>/<key[:2]>/<key>/gt.exr`` (float32 multichannel, lossless) and ``gt.json``
+(metadata, with the EXR's size and sha256).  An entry is written into a temporary directory
+beside its final place and renamed into place in one step, so a render killed at any moment
+leaves either no entry or a complete one; a reader also checks the EXR's checksum before
+trusting it, and throws away anything that does not match.
+
+Root: ``--cache`` / ``PBRBENCH_CACHE``, else ``$XDG_CACHE_HOME/pbrbench`` (``~/.cache/pbrbench``).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.metadata
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+from pbrbench.io import read_exr, write_exr
+from pbrbench.render.groundtruth import GT_FORMAT, GroundTruth, render_ground_truth
+from pbrbench.render.variant import choose_variant, current_choice
+from pbrbench.scene.spec import SceneSpec
+
+
+def default_root() -> Path:
+    env = os.environ.get("PBRBENCH_CACHE")
+    if env:
+        return Path(env)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return Path(xdg) / "pbrbench" if xdg else Path.home() / ".cache" / "pbrbench"
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def cache_key(spec: SceneSpec, quality: str, variant: str) -> str:
+    try:
+        mv = importlib.metadata.version("mitsuba")
+    except importlib.metadata.PackageNotFoundError:  # pragma: no cover
+        mv = "?"
+    blob = json.dumps({"scene": spec.content_hash(), "quality": quality, "variant": variant,
+                       "mitsuba": mv, "format": GT_FORMAT}, sort_keys=True)
+    return hashlib.sha256(blob.encode()).hexdigest()
+
+
+class RenderCache:
+    """Ground truths on disk, keyed by content."""
+
+    def __init__(self, root: str | os.PathLike | None = None):
+        self.root = Path(root) if root is not None else default_root()
+
+    def entry_dir(self, key: str) -> Path:
+        return self.root / "gt" / key[:2] / key
+
+    def get(self, key: str) -> GroundTruth | None:
+        """The cached ground truth, or None if absent or not intact (then it is removed)."""
+        d = self.entry_dir(key)
+        meta_p, exr_p = d / "gt.json", d / "gt.exr"
+        if not (meta_p.is_file() and exr_p.is_file()):
+            return None
+        try:
+            meta = json.loads(meta_p.read_text())
+            if meta.get("exr_size") != exr_p.stat().st_size or meta.get("exr_sha256") != _sha256(exr_p):
+                raise ValueError("checksum mismatch")
+            arrays = read_exr(exr_p)
+        except Exception:  # a damaged entry is never read as valid
+            shutil.rmtree(d, ignore_errors=True)
+            return None
+        return GroundTruth(arrays, meta)
+
+    def put(self, key: str, gt: GroundTruth) -> Path:
+        final = self.entry_dir(key)
+        final.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:12]}-", dir=final.parent))
+        try:
+            exr = tmp / "gt.exr"
+            write_exr(exr, gt.arrays)
+            meta = dict(gt.meta, cache_key=key, exr_size=exr.stat().st_size, exr_sha256=_sha256(exr))
+            (tmp / "gt.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
+            try:
+                os.rename(tmp, final)
+            except OSError:
+                # another process finished the same entry first: keep theirs
+                shutil.rmtree(tmp, ignore_errors=True)
+        except BaseException:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise
+        return final
+
+    def entries(self) -> list[Path]:
+        return sorted(p for p in (self.root / "gt").glob("*/*") if p.is_dir() and not p.name.startswith(".tmp-"))
+
+    def info(self) -> dict:
+        entries = self.entries()
+        size = sum(f.stat().st_size for e in entries for f in e.iterdir() if f.is_file())
+        stale = [p for p in (self.root / "gt").glob("*/.tmp-*")]
+        return {"root": str(self.root), "entries": len(entries), "bytes": size, "stale_temporaries": len(stale)}
+
+    def clear(self) -> int:
+        n = len(self.entries())
+        shutil.rmtree(self.root / "gt", ignore_errors=True)
+        return n
+
+
+def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCache | None = None,
+                 variant: str | None = None, force: bool = False, progress=None) -> tuple[GroundTruth, bool]:
+    """The ground truth of ``spec`` from the cache, rendering it if missing.
+
+    Returns ``(ground_truth, from_cache)``.
+    """
+    cache = cache if cache is not None else RenderCache()
+    choice = current_choice() or choose_variant(variant)
+    var = variant or choice.variant
+    key = cache_key(spec, quality, var)
+    if not force:
+        gt = cache.get(key)
+        if gt is not None:
+            return gt, True
+    gt = render_ground_truth(spec, quality, variant=var, progress=progress)
+    gt.meta["cache_key"] = key
+    cache.put(key, gt)
+    return gt, False

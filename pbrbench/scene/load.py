@@ -1,0 +1,295 @@
+"""Load scene files: TOML -> sweep expansion -> :class:`SceneSpec`, with one-line errors.
+
+A bad file raises :class:`~pbrbench.errors.SceneError` whose message names the file, the key
+path and the reason, with a hint where one helps, e.g.
+``scenes/x.toml: lights[1].drection: unknown key (did you mean 'direction'?)``.
+"""
+
+from __future__ import annotations
+
+import copy
+import difflib
+import itertools
+import os
+import re
+import tomllib
+import typing
+from pathlib import Path
+
+from pydantic import BaseModel, ValidationError
+
+from pbrbench.errors import SceneError
+from pbrbench.scene import spec as S
+
+SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+
+
+def scenes_dir() -> Path:
+    """Directory of the scene library (``PBRBENCH_SCENES`` overrides)."""
+    return Path(os.environ.get("PBRBENCH_SCENES", SCENES_DIR))
+
+
+# ------------------------------------------------------------------- error formatting
+_TAGS = {
+    "checker", "mondrian", "image", "diffuse", "plastic", "roughplastic", "sphere", "rectangle",
+    "box", "cylinder", "disk", "heightfield", "directional", "point", "area", "ambient",
+}
+
+
+def _models_in(annotation) -> list[type[BaseModel]]:
+    """All pydantic models reachable from a type annotation (through unions, tuples, dicts)."""
+    out = []
+    origin = typing.get_origin(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return [annotation]
+    if origin is typing.Annotated:
+        return _models_in(typing.get_args(annotation)[0])
+    for a in typing.get_args(annotation):
+        out += _models_in(a)
+    return out
+
+
+def _fields_at(loc: tuple) -> set[str]:
+    """Field names of the model(s) at a location, to suggest close matches for a typo."""
+    models: list[type[BaseModel]] = [S.SceneSpec]
+    tag = None
+    for part in loc:
+        if isinstance(part, int):
+            continue
+        if part in _TAGS and tag is None and not any(part in m.model_fields for m in models):
+            tag = part
+            models = [m for m in models if _tag_of(m) == part] or models
+            continue
+        nxt = []
+        for m in models:
+            f = m.model_fields.get(part)
+            if f is not None:
+                nxt += _models_in(f.annotation)
+        if not nxt:
+            # a key of a dict (e.g. a material name): keep the value models
+            nxt = models
+        models, tag = nxt, None
+    names: set[str] = set()
+    for m in models:
+        names |= set(m.model_fields)
+    return names
+
+
+def _tag_of(model: type[BaseModel]) -> str | None:
+    f = model.model_fields.get("type")
+    if f is None:
+        return None
+    args = typing.get_args(f.annotation)
+    return args[0] if len(args) == 1 else None
+
+
+_JUNK = ("tagged-union[", "function-", "tuple[", "dict[", "union[", "list[")
+
+
+def _clean_loc(loc: tuple) -> tuple:
+    """Drop pydantic's internal location parts (union branches, discriminator tags)."""
+    parts = [p for p in loc if not (isinstance(p, str) and p.startswith(_JUNK))]
+    out: list = []
+    for p in parts:
+        if isinstance(p, str) and p in _TAGS and out and _tag_follows(out):
+            continue
+        out.append(p)
+    return tuple(out)
+
+
+def _tag_follows(prev: list) -> bool:
+    last = prev[-1]
+    return isinstance(last, int) or last in ("material", "albedo") or (len(prev) >= 2 and prev[-2] == "materials")
+
+
+def _loc_str(loc: tuple) -> str:
+    out = ""
+    for part in loc:
+        out += f"[{part}]" if isinstance(part, int) else ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def format_validation_error(path: str, err: ValidationError) -> str:
+    """One line for the first (most useful) error of a pydantic ValidationError."""
+    errors = err.errors()
+    # Prefer errors that are not union-branch noise (e.g. "input should be a valid tuple").
+    order = ("extra_forbidden", "union_tag_invalid", "value_error", "missing")
+
+    def rank(e):
+        t = e["type"]
+        return (order.index(t) if t in order else len(order), -len(e["loc"]))
+
+    e = sorted(errors, key=rank)[0]
+    loc = _clean_loc(tuple(e["loc"]))
+    where = _loc_str(loc)
+    t = e["type"]
+    if t == "extra_forbidden":
+        key = loc[-1]
+        parent = loc[:-1]
+        close = difflib.get_close_matches(str(key), sorted(_fields_at(parent)), n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else f" (valid keys: {', '.join(sorted(_fields_at(parent)))})"
+        return f"{path}: {where}: unknown key{hint}"
+    if t == "missing":
+        return f"{path}: {where}: required key is missing"
+    if t == "union_tag_invalid":
+        ctx = e.get("ctx", {})
+        return f"{path}: {where}.type: unknown type {ctx.get('tag')!r}; choose one of {ctx.get('expected_tags')}"
+    if t == "union_tag_not_found":
+        return f"{path}: {where}: missing key 'type'; choose one of {e.get('ctx', {}).get('discriminator', 'the documented types')}"
+    msg = re.sub(r"^Value error, ", "", e["msg"])
+    if not loc:
+        return f"{path}: {msg}"
+    got = e.get("input")
+    got_s = "" if isinstance(got, (dict, list)) or got is None or "got" in msg else f" (got {got!r})"
+    return f"{path}: {where}: {msg}{got_s}"
+
+
+# ------------------------------------------------------------------------- sweeps
+_PATH_RE = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def _parse_key_path(key: str) -> list:
+    parts = []
+    pos = 0
+    for m in _PATH_RE.finditer(key):
+        if m.start() != pos and key[pos:m.start()] != ".":
+            raise ValueError(key)
+        parts.append(m.group(1) if m.group(1) is not None else int(m.group(2)))
+        pos = m.end()
+    if pos != len(key) or not parts:
+        raise ValueError(key)
+    return parts
+
+
+def _set_path(doc, parts, value, path, key):
+    cur = doc
+    for k, p in enumerate(parts[:-1]):
+        try:
+            cur = cur[p]
+        except (KeyError, IndexError, TypeError):
+            raise SceneError(
+                f"{path}: sweep.{key}: key path does not exist in the file at {'.'.join(map(str, parts[:k + 1]))!r}; "
+                "a sweep key must name an existing value, e.g. 'materials.paper.albedo' or 'lights[0].irradiance'"
+            ) from None
+    last = parts[-1]
+    try:
+        cur[last]  # must exist so typos are caught
+    except (KeyError, IndexError, TypeError):
+        raise SceneError(f"{path}: sweep.{key}: key path does not exist in the file; set a default value there first") from None
+    cur[last] = value
+
+
+def _fmt_value(v) -> str:
+    if isinstance(v, float):
+        return f"{v:g}"
+    if isinstance(v, list):
+        return "/".join(_fmt_value(x) for x in v)
+    return str(v)
+
+
+def expand_sweep(doc: dict, path: str) -> list[dict]:
+    """Expand a ``[sweep]`` table into the Cartesian product of documents."""
+    sweep = doc.get("sweep") or {}
+    if not isinstance(sweep, dict):
+        raise SceneError(f"{path}: sweep: must be a table of key path = [values]")
+    if not sweep:
+        return [doc]
+    keys = list(sweep)
+    for k in keys:
+        if not isinstance(sweep[k], list) or not sweep[k]:
+            raise SceneError(f"{path}: sweep.{k}: must be a non-empty list of values, e.g. [0.1, 0.5, 0.9]")
+        try:
+            _parse_key_path(k)
+        except ValueError:
+            raise SceneError(f"{path}: sweep.{k}: not a key path; write e.g. 'materials.paper.albedo' or 'lights[0].irradiance'") from None
+    out = []
+    for combo in itertools.product(*(sweep[k] for k in keys)):
+        d = copy.deepcopy(doc)
+        d.pop("sweep")
+        for k, v in zip(keys, combo, strict=True):
+            _set_path(d, _parse_key_path(k), v, path, k)
+        label = ",".join(f"{_short(k)}={_fmt_value(v)}" for k, v in zip(keys, combo, strict=True))
+        d["name"] = f"{doc.get('name', '?')}[{label}]"
+        out.append(d)
+    return out
+
+
+def _short(key: str) -> str:
+    return _parse_key_path(key)[-1] if isinstance(_parse_key_path(key)[-1], str) else key
+
+
+# ------------------------------------------------------------------------- loading
+def parse_file(path: str | Path) -> dict:
+    """Read a TOML file, raising SceneError with line/column on a syntax error."""
+    p = Path(path)
+    if not p.is_file():
+        raise SceneError(f"{path}: no such scene file; give a name from `pbrbench scenes` or a path to a .toml file")
+    try:
+        with open(p, "rb") as f:
+            return tomllib.load(f)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see scenes/README.md)") from None
+    except UnicodeDecodeError:
+        raise SceneError(f"{path}: not a UTF-8 text file; scene files are TOML") from None
+
+
+def validate_doc(doc: dict, path: str, base_dir: str) -> S.SceneSpec:
+    if not isinstance(doc.get("name", ""), str):
+        raise SceneError(f"{path}: name: must be a string")
+    try:
+        spec = S.SceneSpec.model_validate({**doc, "base_dir": base_dir, "source": str(path)})
+    except ValidationError as exc:
+        raise SceneError(format_validation_error(str(path), exc)) from None
+    for f in spec.referenced_files():
+        if not os.path.isfile(f):
+            raise SceneError(f"{path}: referenced file {f} does not exist; fix the 'path' key (relative to the scene file)")
+    return spec
+
+
+def load_scene_file(path: str | Path) -> list[S.SceneSpec]:
+    """Load one scene file; a file with a ``[sweep]`` returns several specs."""
+    doc = parse_file(path)
+    if "sweep" in doc:
+        docs = expand_sweep(doc, str(path))
+        sweep = doc["sweep"]
+        specs = [validate_doc({**d, "sweep": {}}, str(path), str(Path(path).parent)) for d in docs]
+        # keep the sweep table on the specs for the record (it does not enter the hash)
+        return [s.model_copy(update={"sweep": sweep}) for s in specs]
+    return [validate_doc(doc, str(path), str(Path(path).parent))]
+
+
+def library_files() -> list[Path]:
+    return sorted(scenes_dir().glob("*.toml"))
+
+
+def load_library() -> dict[str, S.SceneSpec]:
+    """Every scene of the library by name (sweeps expanded)."""
+    out: dict[str, S.SceneSpec] = {}
+    for f in library_files():
+        for s in load_scene_file(f):
+            if s.name in out:
+                raise SceneError(f"{f}: name: {s.name!r} is also used by {out[s.name].source}; scene names must be unique")
+            out[s.name] = s
+    return out
+
+
+def resolve(names_or_paths: list[str]) -> list[S.SceneSpec]:
+    """Scene names, family names (a file stem, expanding its sweep) or paths -> specs."""
+    out: list[S.SceneSpec] = []
+    lib = None
+    for item in names_or_paths:
+        if item.endswith(".toml") or os.sep in item:
+            out += load_scene_file(item)
+            continue
+        stem_file = scenes_dir() / f"{item}.toml"
+        if stem_file.is_file():
+            out += load_scene_file(stem_file)
+            continue
+        lib = lib if lib is not None else load_library()
+        if item in lib:
+            out.append(lib[item])
+            continue
+        close = difflib.get_close_matches(item, list(lib), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else "; run `pbrbench scenes` for the list"
+        raise SceneError(f"{item}: no scene of that name{hint}")
+    return out

@@ -1,0 +1,100 @@
+"""What a benchmark task is: scenes, inputs made from ground truth, algorithms, metrics, conditions.
+
+A task module ``pbrbench/tasks/<name>.py`` defines a subclass of :class:`Task` and registers an
+instance in :data:`pbrbench.tasks.REGISTRY` (see ``pbrbench/tasks/__init__.py``).
+
+The runner (``pbrbench.bench``) asks a task for its :class:`Job` list, makes sure the ground
+truths each job needs are rendered (render cache), calls :meth:`Task.run_job` (possibly in a
+worker process, so jobs are pure functions of their inputs), and stores the returned
+:class:`Score` records; figures (small image arrays and plot data) go into the run's report.
+
+Light-transport conditions (the columns of the report's headline table):
+
+* ``local``  — direct light from distant sources: the local shading model's own assumptions;
+* ``area``   — area / nearby sources (distant-source model violated);
+* ``global`` — full interreflection (global illumination);
+plus, where a task needs it, noise levels appended as ``<condition>+noise<level>`` .
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+import numpy as np
+
+CONDITIONS = ("local", "area", "global")
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of work: one algorithm family on one scene under one condition."""
+
+    task: str
+    scene: str                       # SceneSpec name (ground truth needed)
+    condition: str                   # one of CONDITIONS, optionally "+noise0.01" etc.
+    params: tuple = ()               # hashable extra parameters: tuple of (key, value) pairs
+    extra_scenes: tuple[str, ...] = ()  # further ground truths the job needs (e.g. a twin)
+
+    @property
+    def key(self) -> str:
+        p = ",".join(f"{k}={v}" for k, v in self.params)
+        return f"{self.task}|{self.scene}|{self.condition}|{p}"
+
+    def param(self, name: str, default=None):
+        return dict(self.params).get(name, default)
+
+
+@dataclass(frozen=True)
+class Score:
+    """One number: what was measured, on what, by which algorithm, and how long it took."""
+
+    task: str
+    scene: str
+    scene_hash: str
+    condition: str
+    algorithm: str
+    algorithm_version: str
+    metric: str
+    value: float
+    seconds: float
+    better: str = "lower"            # "lower" or "higher": the direction of improvement
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class JobResult:
+    """Scores plus figures for the report.
+
+    ``images``: name -> (H, W) or (H, W, 3) float array (already display-ready in [0, 1], or
+    linear radiance flagged by a name starting with "linear:"); ``error_maps``: name -> (H, W)
+    float array (shown with a colour bar); ``plots``: name -> dict of plot data
+    (``{"x": [...], "series": {label: [...]}, "xlabel": str, "ylabel": str}``).
+    """
+
+    job: Job
+    scores: list[Score] = field(default_factory=list)
+    images: dict[str, np.ndarray] = field(default_factory=dict)
+    error_maps: dict[str, np.ndarray] = field(default_factory=dict)
+    plots: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+
+class Task:
+    """Base class; subclasses set the class attributes and implement the two methods."""
+
+    name: str = ""
+    description: str = ""
+    algorithms: tuple[str, ...] = ()     # includes trivial baselines, e.g. "baseline:flat"
+    conditions: tuple[str, ...] = CONDITIONS
+    headline_metric: str = ""            # the metric shown in the headline table
+    headline_better: str = "lower"
+
+    def jobs(self, quality: str) -> list[Job]:
+        """Every job of this task at ``quality``."""
+        raise NotImplementedError
+
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0) -> JobResult:
+        """Run all algorithms of ``job`` on ground truths ``gts`` (scene name -> GroundTruth)."""
+        raise NotImplementedError
