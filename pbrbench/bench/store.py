@@ -1,0 +1,389 @@
+"""The results store: every benchmark run and every score, in one SQLite file.
+
+Default location ``reports/history.sqlite`` (``--store PATH`` or ``PBRBENCH_STORE`` override).
+
+Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, numbered
+:data:`MIGRATIONS`; the table ``schema_migrations`` records which have been applied):
+
+* ``runs``: id, time (UTC ISO 8601), git revision, package / mitsuba / drjit / numpy versions,
+  variant, machine, quality, config (JSON), status (running | complete | interrupted | failed);
+* ``scores``: run, task, scene, scene_hash, condition, algorithm, algorithm_version, metric,
+  value, seconds, better (lower | higher), unit, job (the job key, for resuming);
+* ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
+* ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
+  Monte Carlo noise floor, render time): the report shows its noise without re-reading renders.
+
+Concurrency: WAL journal and a busy timeout, and every write is one short ``BEGIN IMMEDIATE``
+transaction, so two runs writing at once wait for each other instead of failing or corrupting
+the file (see ``tests/test_store.py``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import secrets
+import sqlite3
+import subprocess
+import time
+from collections.abc import Iterable
+from contextlib import contextmanager
+from datetime import UTC, datetime
+from pathlib import Path
+
+DEFAULT_PATH = Path("reports") / "history.sqlite"
+BUSY_TIMEOUT_MS = 60_000
+
+# (version, description, SQL). Never edit an applied migration: append a new one.
+MIGRATIONS: list[tuple[int, str, str]] = [
+    (1, "runs, scores, jobs, ground_truths", """
+CREATE TABLE runs (
+    id TEXT PRIMARY KEY,
+    time TEXT NOT NULL,
+    git_revision TEXT,
+    pbrbench_version TEXT,
+    mitsuba_version TEXT,
+    drjit_version TEXT,
+    numpy_version TEXT,
+    variant TEXT,
+    machine TEXT,
+    quality TEXT,
+    config TEXT NOT NULL DEFAULT '{}',
+    status TEXT NOT NULL DEFAULT 'running',
+    finished TEXT
+);
+CREATE TABLE scores (
+    run TEXT NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+    task TEXT NOT NULL,
+    scene TEXT NOT NULL,
+    scene_hash TEXT NOT NULL DEFAULT '',
+    condition TEXT NOT NULL DEFAULT '',
+    algorithm TEXT NOT NULL,
+    algorithm_version TEXT NOT NULL DEFAULT '',
+    metric TEXT NOT NULL,
+    value REAL,
+    seconds REAL,
+    better TEXT NOT NULL DEFAULT 'lower',
+    unit TEXT NOT NULL DEFAULT '',
+    job TEXT NOT NULL DEFAULT ''
+);
+CREATE INDEX scores_run ON scores(run, task);
+CREATE INDEX scores_metric ON scores(task, metric, algorithm);
+CREATE TABLE jobs (
+    run TEXT NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+    job TEXT NOT NULL,
+    task TEXT NOT NULL,
+    seconds REAL,
+    finished TEXT,
+    error TEXT,
+    PRIMARY KEY (run, job)
+);
+CREATE TABLE ground_truths (
+    run TEXT NOT NULL REFERENCES runs(id) ON DELETE CASCADE,
+    scene TEXT NOT NULL,
+    scene_hash TEXT,
+    quality TEXT,
+    spp INTEGER,
+    resolution TEXT,
+    noise TEXT,
+    render_seconds REAL,
+    from_cache INTEGER,
+    PRIMARY KEY (run, scene)
+);
+"""),
+]
+SCHEMA_VERSION = MIGRATIONS[-1][0]
+
+RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version", "drjit_version",
+              "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
+SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
+                "metric", "value", "seconds", "better", "unit", "job")
+
+
+def default_path() -> Path:
+    env = os.environ.get("PBRBENCH_STORE")
+    return Path(env) if env else DEFAULT_PATH
+
+
+def _now() -> str:
+    return datetime.now(UTC).isoformat(timespec="microseconds")
+
+
+def new_run_id() -> str:
+    """Sortable and unique: UTC time plus 4 random hex digits, e.g. ``20260105-142501-3fa2``."""
+    return datetime.now(UTC).strftime("%Y%m%d-%H%M%S") + "-" + secrets.token_hex(2)
+
+
+def git_revision(cwd: str | os.PathLike | None = None) -> str | None:
+    """``git describe``-like revision of the source tree (``+dirty`` when modified), or None."""
+    cwd = cwd or Path(__file__).resolve().parents[2]
+    try:
+        rev = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=cwd, capture_output=True,
+                             text=True, timeout=10)
+        if rev.returncode != 0:
+            return None
+        dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], cwd=cwd,
+                               capture_output=True, text=True, timeout=10)
+        return rev.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+    except (OSError, subprocess.SubprocessError):
+        return None
+
+
+def environment() -> dict:
+    """Versions and machine description recorded with each run (imports no renderer)."""
+    import importlib.metadata as md
+
+    def v(pkg):
+        try:
+            return md.version(pkg)
+        except md.PackageNotFoundError:
+            return None
+
+    return {
+        "git_revision": git_revision(),
+        "pbrbench_version": v("pbrbench"),
+        "mitsuba_version": v("mitsuba"),
+        "drjit_version": v("drjit"),
+        "numpy_version": v("numpy"),
+        "machine": f"{platform.node()} {platform.machine()} {os.cpu_count()} cpu, {platform.system()} {platform.release()}, Python {platform.python_version()}",
+    }
+
+
+def _num(x):
+    """A float for SQLite (NaN and inf are stored as NULL / as themselves respectively)."""
+    if x is None:
+        return None
+    x = float(x)
+    return None if math.isnan(x) else x
+
+
+class Store:
+    """A connection to the results database (created and migrated on open)."""
+
+    def __init__(self, path: str | os.PathLike | None = None):
+        self.path = Path(path) if path is not None else default_path()
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.conn = sqlite3.connect(str(self.path), timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
+        self.conn.row_factory = sqlite3.Row
+        self.conn.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+        self._retry(lambda: self.conn.execute("PRAGMA journal_mode = WAL"))
+        self.conn.execute("PRAGMA foreign_keys = ON")
+        self.conn.execute("PRAGMA synchronous = NORMAL")
+        self.migrate()
+
+    # ------------------------------------------------------------------ plumbing
+    def close(self):
+        self.conn.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    @staticmethod
+    def _retry(fn, tries: int = 50):
+        for i in range(tries):
+            try:
+                return fn()
+            except sqlite3.OperationalError as e:
+                if "locked" not in str(e) and "busy" not in str(e) or i == tries - 1:
+                    raise
+                time.sleep(0.05 * (1 + i % 5))
+
+    @contextmanager
+    def transaction(self):
+        """One ``BEGIN IMMEDIATE`` transaction (takes the write lock up front: no deadlock)."""
+        self._retry(lambda: self.conn.execute("BEGIN IMMEDIATE"))
+        try:
+            yield self.conn
+        except BaseException:
+            self.conn.execute("ROLLBACK")
+            raise
+        else:
+            self._retry(lambda: self.conn.execute("COMMIT"))
+
+    def schema_version(self) -> int:
+        row = self.conn.execute("SELECT max(version) FROM schema_migrations").fetchone()
+        return int(row[0] or 0)
+
+    def migrate(self) -> list[int]:
+        """Apply the migrations not yet applied, in order; returns their versions."""
+        with self.transaction() as c:
+            c.execute("CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, "
+                      "description TEXT NOT NULL, applied TEXT NOT NULL)")
+            done = {r[0] for r in c.execute("SELECT version FROM schema_migrations")}
+            if done and max(done) > SCHEMA_VERSION:
+                from pbrbench.errors import UserError
+
+                raise UserError(f"{self.path}: results store has schema version {max(done)}, newer than this "
+                                f"pbrbench ({SCHEMA_VERSION}); upgrade pbrbench or use another --store")
+            applied = []
+            for version, desc, sql in MIGRATIONS:
+                if version in done:
+                    continue
+                for stmt in sql.split(";"):
+                    if stmt.strip():
+                        c.execute(stmt)
+                c.execute("INSERT INTO schema_migrations VALUES (?, ?, ?)", (version, desc, _now()))
+                applied.append(version)
+        return applied
+
+    # ------------------------------------------------------------------ runs
+    def create_run(self, *, quality: str, config: dict | None = None, variant: str | None = None,
+                   run_id: str | None = None, env: dict | None = None) -> str:
+        run_id = run_id or new_run_id()
+        env = environment() if env is None else env
+        row = dict(id=run_id, time=_now(), variant=variant, quality=quality,
+                   config=json.dumps(config or {}, sort_keys=True, default=str), status="running")
+        row.update({k: env.get(k) for k in ("git_revision", "pbrbench_version", "mitsuba_version",
+                                              "drjit_version", "numpy_version", "machine")})
+        cols = ", ".join(row)
+        with self.transaction() as c:
+            c.execute(f"INSERT INTO runs ({cols}) VALUES ({', '.join('?' * len(row))})", tuple(row.values()))
+        return run_id
+
+    def set_status(self, run_id: str, status: str, *, variant: str | None = None):
+        with self.transaction() as c:
+            fin = _now() if status != "running" else None
+            c.execute("UPDATE runs SET status = ?, finished = ? WHERE id = ?", (status, fin, run_id))
+            if variant:
+                c.execute("UPDATE runs SET variant = ? WHERE id = ?", (variant, run_id))
+
+    def get_run(self, run_id: str) -> dict | None:
+        row = self.conn.execute("SELECT * FROM runs WHERE id = ?", (run_id,)).fetchone()
+        if row is None:
+            return None
+        d = dict(row)
+        d["config"] = json.loads(d["config"] or "{}")
+        return d
+
+    def resolve_run(self, ref: str | None) -> str:
+        """A run id from a reference: an id, a unique prefix, ``latest`` / None, or ``-N``."""
+        from pbrbench.errors import UserError
+
+        ids = [r[0] for r in self.conn.execute("SELECT id FROM runs ORDER BY time, rowid")]
+        if not ids:
+            raise UserError(f"{self.path}: no runs stored yet; run `pbrbench run` first")
+        if ref in (None, "", "latest"):
+            return ids[-1]
+        if ref.startswith("-") and ref[1:].isdigit() and 0 < int(ref[1:]) <= len(ids):
+            return ids[-int(ref[1:])]
+        if ref in ids:
+            return ref
+        match = [i for i in ids if i.startswith(ref)]
+        if len(match) == 1:
+            return match[0]
+        if not match:
+            raise UserError(f"run {ref!r}: not in {self.path}; `pbrbench history` lists the runs")
+        raise UserError(f"run {ref!r} is ambiguous ({', '.join(match[:5])}); give more of the id")
+
+    def runs(self, *, task: str | None = None, quality: str | None = None, limit: int | None = None) -> list[dict]:
+        """Runs, oldest first, with their number of scores (``task``: only runs that scored it)."""
+        q = ("SELECT r.*, (SELECT count(*) FROM scores s WHERE s.run = r.id) AS n_scores, "
+             "(SELECT group_concat(DISTINCT task) FROM scores s WHERE s.run = r.id) AS tasks FROM runs r")
+        where, args = [], []
+        if task:
+            where.append("EXISTS (SELECT 1 FROM scores s WHERE s.run = r.id AND s.task = ?)")
+            args.append(task)
+        if quality:
+            where.append("r.quality = ?")
+            args.append(quality)
+        if where:
+            q += " WHERE " + " AND ".join(where)
+        q += " ORDER BY r.time, r.rowid"
+        rows = [dict(r) for r in self.conn.execute(q, args)]
+        for r in rows:
+            r["config"] = json.loads(r["config"] or "{}")
+        return rows[-limit:] if limit else rows
+
+    # ------------------------------------------------------------------ scores and jobs
+    def add_job_result(self, run_id: str, job_key: str, task: str, scores: Iterable, *,
+                       seconds: float | None = None, error: str | None = None):
+        """Store a finished job's scores and mark the job complete, in one transaction."""
+        rows = []
+        for s in scores:
+            d = s if isinstance(s, dict) else s.as_dict()
+            rows.append((run_id, d["task"], d["scene"], d.get("scene_hash", "") or "", d.get("condition", "") or "",
+                         d["algorithm"], d.get("algorithm_version", "") or "", d["metric"], _num(d["value"]),
+                         _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key))
+        with self.transaction() as c:
+            c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
+            c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
+            c.execute("INSERT OR REPLACE INTO jobs (run, job, task, seconds, finished, error) VALUES (?, ?, ?, ?, ?, ?)",
+                      (run_id, job_key, task, seconds, _now(), error))
+
+    def done_jobs(self, run_id: str) -> set[str]:
+        """Keys of the jobs of ``run_id`` that completed (without error)."""
+        return {r[0] for r in self.conn.execute("SELECT job FROM jobs WHERE run = ? AND error IS NULL", (run_id,))}
+
+    def job_errors(self, run_id: str) -> dict[str, str]:
+        return {r[0]: r[1] for r in self.conn.execute("SELECT job, error FROM jobs WHERE run = ? AND error IS NOT NULL", (run_id,))}
+
+    def scores(self, run_id: str, *, task: str | None = None) -> list[dict]:
+        q, args = "SELECT * FROM scores WHERE run = ?", [run_id]
+        if task:
+            q += " AND task = ?"
+            args.append(task)
+        q += " ORDER BY task, scene, condition, algorithm, metric"
+        out = []
+        for r in self.conn.execute(q, args):
+            d = dict(r)
+            if d["value"] is None:
+                d["value"] = float("nan")
+            out.append(d)
+        return out
+
+    def add_ground_truth(self, run_id: str, scene: str, meta: dict, *, from_cache: bool):
+        with self.transaction() as c:
+            c.execute("INSERT OR REPLACE INTO ground_truths VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                      (run_id, scene, meta.get("scene_hash"), meta.get("quality"), meta.get("spp"),
+                       json.dumps(meta.get("resolution")), json.dumps(meta.get("noise", {})),
+                       meta.get("wall_s"), int(bool(from_cache))))
+
+    def ground_truths(self, run_id: str) -> list[dict]:
+        out = []
+        for r in self.conn.execute("SELECT * FROM ground_truths WHERE run = ? ORDER BY scene", (run_id,)):
+            d = dict(r)
+            d["noise"] = json.loads(d["noise"] or "{}")
+            d["resolution"] = json.loads(d["resolution"] or "null")
+            out.append(d)
+        return out
+
+    def metric_history(self, task: str, metric: str, *, quality: str | None = None) -> list[dict]:
+        """Per run (oldest first) and algorithm: the mean of ``metric`` over scenes and conditions."""
+        q = ("SELECT r.id AS run, r.time AS time, s.algorithm AS algorithm, s.condition AS condition, "
+             "avg(s.value) AS value, count(s.value) AS n FROM scores s JOIN runs r ON r.id = s.run "
+             "WHERE s.task = ? AND s.metric = ?")
+        args = [task, metric]
+        if quality:
+            q += " AND r.quality = ?"
+            args.append(quality)
+        q += " GROUP BY r.id, s.algorithm, s.condition ORDER BY r.time, r.rowid"
+        return [dict(r) for r in self.conn.execute(q, args)]
+
+    # ------------------------------------------------------------------ export
+    def export_run(self, run_id: str) -> dict:
+        run = self.get_run(run_id)
+        if run is None:
+            raise KeyError(run_id)
+        return {"schema_version": SCHEMA_VERSION, "run": run, "scores": self.scores(run_id),
+                "ground_truths": self.ground_truths(run_id), "job_errors": self.job_errors(run_id)}
+
+    def export_json(self, run_id: str, path: str | os.PathLike) -> Path:
+        """Write the run and its scores as JSON (NaN written as null)."""
+        data = self.export_run(run_id)
+        for s in data["scores"]:
+            if isinstance(s["value"], float) and math.isnan(s["value"]):
+                s["value"] = None
+        p = Path(path)
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp = p.with_suffix(p.suffix + ".tmp")
+        tmp.write_text(json.dumps(data, indent=1, sort_keys=True))
+        os.replace(tmp, p)
+        return p
+
+    def integrity_ok(self) -> bool:
+        return self.conn.execute("PRAGMA integrity_check").fetchone()[0] == "ok"

@@ -1,0 +1,68 @@
+"""``pbrbench compare RUN_A RUN_B``: per-metric differences between two runs, better or worse."""
+
+from __future__ import annotations
+
+import math
+
+
+def register(sub):
+    p = sub.add_parser("compare", help="per-metric differences between two stored runs")
+    p.add_argument("run_a", help="the earlier / reference run (id, prefix, latest, -2)")
+    p.add_argument("run_b", help="the run to compare with it")
+    p.add_argument("--task", default=None, help="only this task")
+    p.add_argument("--all", action="store_true", help="also list unchanged scores")
+    p.add_argument("--rel", type=float, default=0.0, metavar="R",
+                   help="call a change unchanged when |b - a| <= R * |a| (default 0: exact)")
+    p.add_argument("--out", default="reports", metavar="DIR")
+    p.add_argument("--store", default=None, metavar="PATH", help="results database")
+    p.set_defaults(func=run)
+
+
+KEY = ("task", "scene", "condition", "algorithm", "metric")
+
+
+def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0) -> list[dict]:
+    """Rows {key fields, a, b, delta, direction} with direction better / worse / same / only-a / only-b."""
+    A = {tuple(s[k] for k in KEY): s for s in a_scores}
+    B = {tuple(s[k] for k in KEY): s for s in b_scores}
+    rows = []
+    for key in sorted(set(A) | set(B)):
+        sa, sb = A.get(key), B.get(key)
+        va = sa["value"] if sa else float("nan")
+        vb = sb["value"] if sb else float("nan")
+        better = (sb or sa)["better"]
+        if sa is None:
+            d = "only-b"
+        elif sb is None:
+            d = "only-a"
+        elif math.isnan(va) and math.isnan(vb):
+            d = "same"
+        elif math.isnan(va) or math.isnan(vb):
+            d = "better" if math.isnan(va) else "worse"
+        elif abs(vb - va) <= rel * abs(va) or vb == va:
+            d = "same"
+        else:
+            d = "better" if (vb < va) == (better == "lower") else "worse"
+        rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, better=better, direction=d))
+    return rows
+
+
+def run(args) -> int:
+    from pbrbench.cli.report import open_store
+    from pbrbench.report.html import fmt
+
+    with open_store(args) as store:
+        a, b = store.resolve_run(args.run_a), store.resolve_run(args.run_b)
+        rows = differences(store.scores(a, task=args.task), store.scores(b, task=args.task), rel=args.rel)
+    counts = {}
+    for r in rows:
+        counts[r["direction"]] = counts.get(r["direction"], 0) + 1
+    shown = [r for r in rows if args.all or r["direction"] != "same"]
+    print(f"compare {a} -> {b}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    if shown:
+        print(f"{'task':18s} {'scene':34s} {'condition':12s} {'algorithm':24s} {'metric':20s} {'a':>10s} {'b':>10s} {'delta':>10s}  direction")
+        for r in shown:
+            print(f"{r['task'][:18]:18s} {r['scene'][:34]:34s} {r['condition'][:12]:12s} {r['algorithm'][:24]:24s} "
+                  f"{r['metric'][:20]:20s} {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s}  "
+                  f"{r['direction']} ({r['better']} is better)")
+    return 0

@@ -1,0 +1,106 @@
+"""``pbrbench run``: render what is missing, run every algorithm, score, store, report."""
+
+from __future__ import annotations
+
+import sys
+
+from pbrbench.cli.common import add_cache, add_variant, apply_env
+
+EXIT_OK, EXIT_FAILED_JOBS, EXIT_REGRESSION = 0, 1, 2
+
+
+def register(sub):
+    from pbrbench.tasks import TASK_MODULES
+
+    p = sub.add_parser("run", help="run the benchmark: render (cached), infer, score, store, report",
+                       description="Run the benchmark tasks, store every score and write the HTML report. "
+                                   f"Tasks: {', '.join(TASK_MODULES)}.")
+    p.add_argument("--tasks", nargs="+", metavar="TASK", default=None, help="tasks to run (default: all)")
+    p.add_argument("--quality", choices=["draft", "standard", "high"], default="standard",
+                   help="render quality preset (default: standard; draft is the CI setting)")
+    p.add_argument("--executor", choices=["local", "dask"], default="local",
+                   help="local: this process; dask: a Dask distributed cluster")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="Dask scheduler address (default: start a LocalCluster)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="LocalCluster worker processes (one thread each; default: cores / 2)")
+    p.add_argument("--out", default="reports", metavar="DIR", help="reports go to DIR/<run>/ (default: reports)")
+    p.add_argument("--store", default=None, metavar="PATH",
+                   help="results database (default: PBRBENCH_STORE or DIR/history.sqlite)")
+    p.add_argument("--seed", type=int, default=0, help="seed handed to every job (default 0)")
+    p.add_argument("--check", action="store_true",
+                   help="compare with tests/baselines/<quality>.json and exit 2 on a regression")
+    p.add_argument("--update-baselines", action="store_true",
+                   help="rerun with more seeds, measure the spread and rewrite tests/baselines/<quality>.json")
+    p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run (its id)")
+    p.add_argument("--no-report", action="store_true", help="store scores but write no HTML report")
+    add_variant(p)
+    add_cache(p)
+    p.set_defaults(func=run)
+
+
+def summary_lines(outcome) -> list[str]:
+    from pbrbench.report.html import headline_tables
+
+    lines = []
+    for h in headline_tables(outcome.scores, outcome.task_info):
+        conds = h["conditions"]
+        w = max([len("algorithm")] + [len(r["algorithm"]) for r in h["rows"]])
+        texts = [[c["text"] + (" !" if c["mark"] == "regression" else "") for c in r["cells"]] for r in h["rows"]]
+        cw = [max([len(c)] + [len(t[i]) for t in texts]) + 2 for i, c in enumerate(conds)]
+        lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; mean over scenes; ! = regression)")
+        lines.append("  " + "algorithm".ljust(w) + "".join(c.rjust(cw[i]) for i, c in enumerate(conds)))
+        for r, t in zip(h["rows"], texts, strict=True):
+            lines.append("  " + r["algorithm"].ljust(w) + "".join(x.rjust(cw[i]) for i, x in enumerate(t)))
+    return lines
+
+
+def run(args) -> int:
+    apply_env(args)
+    from pbrbench.bench.runner import RunConfig, run_benchmark, update_baselines
+    from pbrbench.errors import UserError
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers {args.workers}: give at least 1")
+    if args.workers and args.executor != "dask":
+        raise UserError("--workers only applies to --executor dask")
+    if args.scheduler and args.executor != "dask":
+        raise UserError("--scheduler only applies to --executor dask")
+    if args.resume and (args.tasks or args.update_baselines):
+        raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
+    cfg = RunConfig(tasks=args.tasks, quality=args.quality, seed=args.seed, executor=args.executor,
+                    scheduler=args.scheduler, workers=args.workers, out=args.out, store=args.store,
+                    cache=args.cache, variant=args.variant, resume=args.resume, report=not args.no_report,
+                    check=args.check, update_baselines=args.update_baselines)
+    o = run_benchmark(cfg)
+    print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
+          f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
+    for line in summary_lines(o):
+        print(line)
+    code = EXIT_OK
+    if o.errors:
+        print(f"{len(o.errors)} job(s) failed (tracebacks in the report); rerun them with "
+              f"`pbrbench run --resume {o.run_id}`", file=sys.stderr)
+        code = EXIT_FAILED_JOBS
+    comp = o.comparison
+    if comp is not None:
+        print(f"baselines: {comp.n_checked} scores checked, {len(comp.regressions)} regression(s), "
+              f"{len(comp.improvements)} improvement(s), {len(comp.missing)} missing, {len(comp.new)} new")
+        for ch in comp.regressions[:20]:
+            print("  " + str(ch))
+        if len(comp.regressions) > 20:
+            print(f"  ... and {len(comp.regressions) - 20} more (see the report)")
+        if args.check and (comp.regressions or comp.missing):
+            for k in comp.missing[:10]:
+                print(f"  missing: {k}")
+            code = EXIT_REGRESSION
+    elif args.check:
+        print(f"--check: no baselines for quality {cfg.quality}; create them with "
+              f"`pbrbench run --quality {cfg.quality} --update-baselines`", file=sys.stderr)
+        code = EXIT_REGRESSION
+    if args.update_baselines:
+        path = update_baselines(cfg, o)
+        print(f"baselines written: {path}")
+    if o.report:
+        print(f"report: {o.report.resolve()}")
+    return code
