@@ -1,1 +1,40 @@
-"""Scores: each function compares an estimate with the ground truth and returns a float or a map."""
+"""Scores: each function compares an estimate with the ground truth.
+
+One module per area (``hdr``, ``lightness``, ``specular``, ``normals``, ``sfs``); the public
+functions are re-exported here, so ``from pbrbench.metrics import lmse`` works.
+"""
+
+from pbrbench.metrics.hdr import (
+    hdr_scores,
+    invalid_fraction,
+    log_radiance_rmse,
+    log_radiance_rmse_extremes,
+    response_rmse,
+)
+from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, lmse, lmse_map, ratio_errors, si_mse
+from pbrbench.metrics.normals import (
+    albedo_relative_error,
+    angular_error_map,
+    angular_error_stats,
+    height_rmse,
+    height_rmse_scaled,
+)
+from pbrbench.metrics.sfs import (
+    ambiguity_aware_scores,
+    flat_baseline,
+    floor_height,
+    floor_scores,
+    height_errors,
+    normal_angle,
+    sfs_scores,
+)
+from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
+
+__all__ = [
+    "albedo_abs_error", "albedo_relative_error", "ambiguity_aware_scores", "angular_error_map",
+    "angular_error_stats", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
+    "height_errors", "height_rmse", "height_rmse_scaled", "intrinsic_lmse", "invalid_fraction",
+    "lmse", "lmse_map", "log_radiance_rmse", "log_radiance_rmse_extremes", "mask_iou",
+    "normal_angle", "ratio_errors", "removal_errors", "response_rmse", "sfs_scores", "si_mse",
+    "specular_mask_from_twin",
+]

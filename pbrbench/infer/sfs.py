@@ -1,0 +1,973 @@
+r"""Shape from one shaded image (SCIENCE.md §7): classical shape-from-shading methods.
+
+Model (all methods): a Monge patch ``z = f(x, y)`` seen orthographically along ``z`` in the
+camera frame of SCIENCE.md §0 (x right, y up, z toward the camera; row 0 is the top), of uniform
+Lambertian albedo ``rho``, lit by one distant source of unit direction ``S`` (toward the source).
+With ``p = f_x``, ``q = f_y`` the image irradiance equation is
+
+.. math::
+    I(x, y) = \rho\, R(p, q), \qquad
+    R(p, q) = \max\Big(0, \frac{S_z - S_x p - S_y q}{\sqrt{1 + p^2 + q^2}}\Big),
+
+the normal being ``N = (-p, -q, 1) / sqrt(1 + p^2 + q^2)``.  Every method works on the
+normalised image ``E = I / rho`` (clipped to [0, 1]) in **pixel units** (slopes are unitless; the
+height is computed in pixels and multiplied by ``pixel_size`` at the end).
+
+Objects
+-------
+shape_from_shading
+    Height and normals from one image: ``horn1989``, ``tsai_shah1994``, ``pentland1990``,
+    ``fast_marching``.
+light_from_shading
+    Light direction (and albedo) from one image: ``contour`` (occluding-contour least squares)
+    and ``lee_rosenfeld1985`` (image statistics).
+SFSResult, LightEstimate
+    Frozen result records.
+
+References
+----------
+- B. K. P. Horn, "Height and gradient from shading", International Journal of Computer Vision
+  5(1):37-75, 1990 (MIT AI Memo 1105, 1989).
+- P.-S. Tsai and M. Shah, "Shape from shading using linear approximation", Image and Vision
+  Computing 12(8):487-498, 1994.
+- A. P. Pentland, "Linear shape from shading", International Journal of Computer Vision
+  4(2):153-162, 1990.
+- R. Kimmel and J. A. Sethian, "Optimal algorithm for shape from shading and path planning",
+  Journal of Mathematical Imaging and Vision 14(3):237-244, 2001.
+- C.-H. Lee and A. Rosenfeld, "Improved methods of estimating shape from shading using the light
+  source coordinate system", Artificial Intelligence 26(2):125-143, 1985.
+- A. P. Pentland, "Finding the illuminant direction", Journal of the Optical Society of America
+  72(4):448-455, 1982.
+- P. Nillius and J.-O. Eklundh, "Automatic estimation of the projected light source direction",
+  CVPR 2001 (light from the occluding contour).
+- R. Zhang, P.-S. Tsai, J. E. Cryer and M. Shah, "Shape from shading: a survey", IEEE TPAMI
+  21(8):690-706, 1999.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from pbrbench.infer._validate import (
+    as_float_array,
+    check_finite,
+    check_mask,
+    check_method,
+    check_positive,
+)
+
+__all__ = [
+    "METHODS",
+    "LIGHT_METHODS",
+    "SFSResult",
+    "LightEstimate",
+    "shape_from_shading",
+    "light_from_shading",
+    "integrate_gradients",
+    "occluding_boundary",
+]
+
+METHODS = ("horn1989", "tsai_shah1994", "pentland1990", "fast_marching")
+LIGHT_METHODS = ("contour", "lee_rosenfeld1985")
+
+
+@dataclass(frozen=True)
+class SFSResult:
+    """Result of :func:`shape_from_shading`.
+
+    Attributes
+    ----------
+    height : (H, W) float64
+        Height ``z`` in the units of ``pixel_size``, mean zero over the mask (the free offset),
+        0 outside the mask.  Larger is closer to the camera.
+    normals : (H, W, 3) float64
+        Unit normals in the camera frame; (0, 0, 0) outside the mask.
+    converged : bool
+        True when the method met its tolerance (or is direct, as ``pentland1990``).
+    n_iter : int
+        Iterations used (0 for direct methods, marched pixels for ``fast_marching``).
+    method : str
+    light : (3,) float64
+        The unit light direction used.
+    albedo : float
+        The albedo used to normalise the image.
+    seconds : float
+        Wall-clock time of the solve.
+    info : dict
+        Method-specific diagnostics (final update size, seeds, ...).
+    """
+
+    height: np.ndarray
+    normals: np.ndarray
+    converged: bool
+    n_iter: int
+    method: str
+    light: np.ndarray
+    albedo: float
+    seconds: float
+    info: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class LightEstimate:
+    """Result of :func:`light_from_shading`: unit ``direction`` (3,), ``albedo``, ``method``."""
+
+    direction: np.ndarray
+    albedo: float
+    method: str
+
+
+# --------------------------------------------------------------------------------------------
+# shared helpers
+# --------------------------------------------------------------------------------------------
+
+def _reflectance(p, q, s):
+    """``R(p, q)`` (unclipped), ``dR/dp``, ``dR/dq`` for unit light ``s``."""
+    d2 = 1.0 + p * p + q * q
+    d = np.sqrt(d2)
+    num = s[2] - s[0] * p - s[1] * q
+    r = num / d
+    d3 = d2 * d
+    rp = (-s[0] * d2 - num * p) / d3
+    rq = (-s[1] * d2 - num * q) / d3
+    return r, rp, rq
+
+
+def _normals_from_pq(p, q, mask):
+    n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    n[~mask] = 0.0
+    return n
+
+
+def _pq_from_height(z, mask):
+    """Slopes ``p = f_x``, ``q = f_y`` (pixel units) of a height map by central differences,
+    one-sided where a neighbour lies outside ``mask``; 0 where a pixel has no neighbour inside."""
+    def deriv(axis):
+        zf = np.where(mask, z, 0.0)
+        plus = np.roll(zf, -1, axis)
+        minus = np.roll(zf, 1, axis)
+        mp = np.roll(mask, -1, axis)
+        mm = np.roll(mask, 1, axis)
+        n = z.shape[axis]
+        idx = np.arange(n)
+        edge_hi = (idx == n - 1)
+        edge_lo = (idx == 0)
+        shape = [1, 1]
+        shape[axis] = n
+        mp = mp & ~edge_hi.reshape(shape)
+        mm = mm & ~edge_lo.reshape(shape)
+        both = mp & mm
+        d = np.zeros_like(z)
+        d[both] = (plus[both] - minus[both]) / 2.0
+        fwd = mp & ~mm
+        d[fwd] = plus[fwd] - zf[fwd]
+        bwd = mm & ~mp
+        d[bwd] = zf[bwd] - minus[bwd]
+        return d
+    p = deriv(1)
+    q = -deriv(0)  # y up: f_y = -d/d(row)
+    return np.where(mask, p, 0.0), np.where(mask, q, 0.0)
+
+
+def integrate_gradients(p, q, *, mask=None, pixel_size: float = 1.0) -> np.ndarray:
+    """Least-squares height from slopes ``p = f_x``, ``q = f_y`` with the shared integrator.
+
+    Uses :func:`pbrbench.infer.integration.integrate_normals` (``method="lsq"``) when that module
+    is present, else :func:`pbrbench.infer.poisson.solve_gradient_field` directly with
+    ``gx = h (p_j + p_{j+1}) / 2`` and ``gy = -h (q_i + q_{i+1}) / 2`` (rows go down, y up).
+    The same function gives the SFS methods' heights and the metric's floor
+    (:func:`pbrbench.metrics.sfs.floor_height`), so both share one integrator.
+
+    Returns the height (H, W) in units of ``pixel_size``, mean zero on each connected component
+    of ``mask``, 0 outside.
+    """
+    p = np.asarray(p, float)
+    q = np.asarray(q, float)
+    m = check_mask(mask, p.shape)
+    h = check_positive(pixel_size, "pixel_size")
+    p0 = np.where(m, p, 0.0)
+    q0 = np.where(m, q, 0.0)
+    try:
+        from pbrbench.infer.integration import integrate_normals  # noqa: PLC0415
+    except ImportError:
+        integrate_normals = None
+    if integrate_normals is not None:
+        z = integrate_normals(gradients=(p0, q0), mask=m, method="lsq", pixel_size=h)
+        z = np.asarray(getattr(z, "height", z), float)
+    else:
+        from pbrbench.infer.poisson import solve_gradient_field  # noqa: PLC0415
+        gx = np.zeros_like(p0)
+        gy = np.zeros_like(q0)
+        gx[:, :-1] = 0.5 * h * (p0[:, :-1] + p0[:, 1:])
+        gy[:-1, :] = -0.5 * h * (q0[:-1, :] + q0[1:, :])
+        z = solve_gradient_field(gx, gy, mask=m)
+    z = np.where(m, z, 0.0)
+    z[m] -= z[m].mean()
+    return z
+
+
+def occluding_boundary(mask, *, exclude_border: bool = True) -> np.ndarray:
+    """Pixels of ``mask`` with a 4-neighbour outside it: candidate occluding-contour pixels.
+
+    With ``exclude_border`` pixels on the image frame are not counted (a mask cut by the frame is
+    not an occluding contour there).
+    """
+    m = np.asarray(mask, bool)
+    inner = ndimage.binary_erosion(m, structure=ndimage.generate_binary_structure(2, 1), border_value=1)
+    b = m & ~inner
+    if exclude_border:
+        b[0, :] = b[-1, :] = False
+        b[:, 0] = b[:, -1] = False
+    return b
+
+
+def _outward_directions(mask, sigma: float = 1.5):
+    """Unit outward 2-D normals (dx, dy) of the silhouette, in the xy frame (y up)."""
+    sm = ndimage.gaussian_filter(mask.astype(float), sigma)
+    gr, gc = np.gradient(sm)
+    dx, dy = -gc, gr  # outward = -grad(mask); y up flips the row component
+    nrm = np.hypot(dx, dy)
+    nrm[nrm == 0] = 1.0
+    return dx / nrm, dy / nrm
+
+
+def _contour_pq(E, s, mask, boundary, theta_max):
+    """Gradients at occluding-contour pixels: tilt from the silhouette, slant from brightness.
+
+    At a contour pixel the normal is ``(sin t d, cos t)`` with ``d`` the outward silhouette
+    normal; ``E = sin t (d . S_xy) + cos t S_z`` fixes ``t``; of its two roots the one nearest
+    90 degrees (and at most ``theta_max``) is kept.
+    """
+    dx, dy = _outward_directions(mask)
+    a = dx * s[0] + dy * s[1]
+    b = s[2]
+    c = np.hypot(a, b)
+    phi = np.arctan2(a, b)
+    alpha = np.arccos(np.clip(E / np.maximum(c, 1e-12), -1.0, 1.0))
+    cands = np.stack([phi + alpha, phi - alpha])
+    ok = (cands >= 0) & (cands <= theta_max)
+    dist = np.where(ok, np.abs(cands - np.pi / 2), np.inf)
+    pick = np.take_along_axis(cands, np.argmin(dist, axis=0)[None], 0)[0]
+    t = np.where(ok.any(axis=0), pick, theta_max)
+    slope = np.tan(t)
+    # the surface falls away outward: grad f = -tan(t) d, so that N = (sin t d, cos t)
+    p = np.where(boundary, -slope * dx, 0.0)
+    q = np.where(boundary, -slope * dy, 0.0)
+    return p, q
+
+
+def _prepare(image, light, albedo, mask, pixel_size):
+    img = as_float_array(image, "image", ndim=(2,))
+    m = check_mask(mask, img.shape)
+    check_finite(img, "image", where=m)
+    if np.any(img[m] < 0):
+        raise ValueError("image: has negative values inside the mask; pass a linear image (>= 0), "
+                         "e.g. np.clip(image, 0, None)")
+    s = as_float_array(light, "light", ndim=(1,))
+    if s.shape != (3,):
+        raise ValueError(f"light: expected a 3-vector (x, y, z) toward the source, got shape {s.shape}")
+    check_finite(s, "light")
+    ns = np.linalg.norm(s)
+    if ns == 0:
+        raise ValueError("light: zero vector; pass a direction toward the source, e.g. (0, 0, 1)")
+    s = s / ns
+    if s[2] <= 0:
+        raise ValueError(f"light: z component {s[2]:.3g} <= 0 (light behind the surface); the "
+                         "camera looks along -z, so pass a light with z > 0")
+    h = check_positive(pixel_size, "pixel_size")
+    if albedo is None:
+        rho = float(img[m].max())
+        if rho <= 0:
+            raise ValueError("image: all zero inside the mask; shape from shading needs a lit surface")
+    else:
+        rho = check_positive(albedo, "albedo")
+    e = np.clip(np.where(m, img / rho, 0.0), 0.0, 1.0)
+    return e, s, m, rho, h
+
+
+def _check_int(v, name):
+    iv = int(v)
+    if iv != v or iv < 1:
+        raise ValueError(f"{name}: must be a positive integer, got {v!r}")
+    return iv
+
+
+# --------------------------------------------------------------------------------------------
+# horn1989
+# --------------------------------------------------------------------------------------------
+
+def _lbfgs(fun, x, *, maxiter, gtol, memory=10):
+    """Minimise a smooth function by L-BFGS (two-loop recursion) with Armijo backtracking.
+
+    Nocedal & Wright, "Numerical Optimization", Algorithm 7.4.  Returns ``(x, f, n_iter,
+    converged)``; converged when the RMS gradient falls below ``gtol``.
+    """
+    f, g = fun(x)
+    S, Y, RHO = [], [], []
+    n = x.size
+    for it in range(1, maxiter + 1):
+        if math.sqrt(float(g @ g) / n) < gtol:
+            return x, f, it - 1, True
+        d = -g.copy()
+        alphas = []
+        for s_i, y_i, r_i in zip(reversed(S), reversed(Y), reversed(RHO), strict=True):
+            a = r_i * float(s_i @ d)
+            alphas.append(a)
+            d -= a * y_i
+        if S:
+            d *= float(S[-1] @ Y[-1]) / float(Y[-1] @ Y[-1])
+        else:
+            d /= max(1.0, math.sqrt(float(g @ g)))
+        for (s_i, y_i, r_i), a in zip(zip(S, Y, RHO, strict=True), reversed(alphas), strict=True):
+            b = r_i * float(y_i @ d)
+            d += (a - b) * s_i
+        gd = float(g @ d)
+        if gd >= 0:  # not a descent direction: restart with steepest descent
+            S, Y, RHO = [], [], []
+            d = -g / max(1.0, math.sqrt(float(g @ g)))
+            gd = float(g @ d)
+        t = 1.0
+        for _ in range(30):
+            xn = x + t * d
+            fn, gn = fun(xn)
+            if fn <= f + 1e-4 * t * gd:
+                break
+            t *= 0.5
+        else:
+            return x, f, it, False
+        sv, yv = xn - x, gn - g
+        sy = float(sv @ yv)
+        if sy > 1e-12:
+            S.append(sv)
+            Y.append(yv)
+            RHO.append(1.0 / sy)
+            if len(S) > memory:
+                S.pop(0)
+                Y.pop(0)
+                RHO.pop(0)
+        x, f, g = xn, fn, gn
+    return x, f, maxiter, math.sqrt(float(g @ g) / n) < gtol
+
+
+def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_stages, init=None):
+    """Minimise Horn's functional over (p, q, z) on the mask by L-BFGS with continuation in lambda.
+
+    Discrete energy (x-edges ``a -> b`` join horizontal neighbours, y-edges vertical ones, both
+    pixels in the mask)::
+
+        J = sum_pix (E - R+(p, q))^2
+          + lam * sum_edges ((p_a - p_b)^2 + (q_a - q_b)^2)
+          + mu  * (sum_x-edges (z_b - z_a - (p_a + p_b)/2)^2 + sum_y-edges (z_b - z_a + (q_a + q_b)/2)^2)
+
+    (y up: moving one row down changes z by ``-q``).  Occluding-contour pixels keep their
+    gradient fixed (Dirichlet).  Attached-shadow pixels (``E = 0``) contribute only where
+    ``R > 0``.
+    """
+    fixed = boundary & m
+    pb, qb = _contour_pq(E, s, m, fixed, theta_max)
+    free = m & ~fixed
+    nf = int(free.sum())
+    ex = m[:, :-1] & m[:, 1:]
+    ey = m[:-1, :] & m[1:, :]
+    shadow = E <= 0.0
+    data_w = m.astype(float)
+    lam_list = np.geomspace(lam, lam_min, n_stages) if n_stages > 1 else np.array([lam_min])
+    P = np.where(fixed, pb, 0.0)
+    Q = np.where(fixed, qb, 0.0)
+    if init is not None:
+        P = np.where(fixed, pb, np.where(m, init[0], 0.0))
+        Q = np.where(fixed, qb, np.where(m, init[1], 0.0))
+    Z = integrate_gradients(P, Q, mask=m)
+    state = {"nfev": 0}
+
+    def unpack(x):
+        p = P.copy()
+        q = Q.copy()
+        z = np.zeros_like(E)
+        p[free] = x[:nf]
+        q[free] = x[nf:2 * nf]
+        z[m] = x[2 * nf:]
+        return p, q, z
+
+    def fun(x, lam_k):
+        state["nfev"] += 1
+        p, q, z = unpack(x)
+        r, rp, rq = _reflectance(p, q, s)
+        pos = r > 0
+        res = np.where(shadow & ~pos, 0.0, E - np.where(pos, r, 0.0)) * data_w
+        J = float(np.sum(res * res))
+        gp = -2 * res * np.where(pos, rp, 0.0)
+        gq = -2 * res * np.where(pos, rq, 0.0)
+        gz = np.zeros_like(E)
+        # smoothness
+        for a, axis in ((p, 1), (q, 1), (p, 0), (q, 0)):
+            if axis == 1:
+                d = np.where(ex, a[:, 1:] - a[:, :-1], 0.0)
+            else:
+                d = np.where(ey, a[1:, :] - a[:-1, :], 0.0)
+            J += lam_k * float(np.sum(d * d))
+            g = gp if a is p else gq
+            if axis == 1:
+                g[:, 1:] += 2 * lam_k * d
+                g[:, :-1] -= 2 * lam_k * d
+            else:
+                g[1:, :] += 2 * lam_k * d
+                g[:-1, :] -= 2 * lam_k * d
+        # integrability
+        rx = np.where(ex, z[:, 1:] - z[:, :-1] - 0.5 * (p[:, 1:] + p[:, :-1]), 0.0)
+        ry = np.where(ey, z[1:, :] - z[:-1, :] + 0.5 * (q[1:, :] + q[:-1, :]), 0.0)
+        J += mu * float(np.sum(rx * rx) + np.sum(ry * ry))
+        gz[:, 1:] += 2 * mu * rx
+        gz[:, :-1] -= 2 * mu * rx
+        gz[1:, :] += 2 * mu * ry
+        gz[:-1, :] -= 2 * mu * ry
+        gp[:, 1:] -= mu * rx
+        gp[:, :-1] -= mu * rx
+        gq[1:, :] += mu * ry
+        gq[:-1, :] += mu * ry
+        grad = np.concatenate([gp[free], gq[free], gz[m]])
+        return J, grad
+
+    x = np.concatenate([P[free], Q[free], Z[m]])
+    lam_list = lam_list[-max_iter:]  # never more stages than iterations
+    per_stage = max(1, max_iter // len(lam_list))
+    n_iter = 0
+    converged = False
+    for k, lam_k in enumerate(lam_list):
+        last = k == len(lam_list) - 1
+        budget = max_iter - n_iter if last else per_stage
+        x, fval, nit, ok = _lbfgs(lambda v, lk=float(lam_k): fun(v, lk), x, maxiter=max(1, budget), gtol=tol)
+        n_iter += nit
+        if last:
+            converged = ok
+    p, q, _ = unpack(x)
+    return p, q, converged, n_iter, {"final_energy": float(fval),
+                                     "final_lambda": float(lam_list[-1]), "n_boundary": int(fixed.sum()),
+                                     "nfev": state["nfev"]}
+
+
+def _horn_pyramid(E, s, m, *, levels, **kw):
+    """Coarse-to-fine driver: solve on 2x2-block-averaged images first and upsample (p, q)."""
+    if levels > 1 and min(E.shape) >= 32 and E.shape[0] % 2 == 0 and E.shape[1] % 2 == 0:
+        H, W = E.shape
+        mc = m.reshape(H // 2, 2, W // 2, 2).all(axis=(1, 3))
+        if mc.sum() >= 16:
+            Ec = (np.where(m, E, 0.0).reshape(H // 2, 2, W // 2, 2).sum(axis=(1, 3))
+                  / np.maximum(m.reshape(H // 2, 2, W // 2, 2).sum(axis=(1, 3)), 1))
+            kc = dict(kw)
+            kc["boundary"] = occluding_boundary(mc) if kw["boundary"].any() else np.zeros_like(mc)
+            pc, qc, _, itc, _ = _horn_pyramid(Ec, s, mc, levels=levels - 1, **kc)
+            up = np.ones((2, 2))
+            kw = dict(kw)
+            kw["init"] = (np.kron(pc, up), np.kron(qc, up))
+    return _horn(E, s, m, **kw)
+
+
+# --------------------------------------------------------------------------------------------
+# tsai_shah1994
+# --------------------------------------------------------------------------------------------
+
+def _tsai_shah(E, s, m, *, max_iter, tol, damping, max_step, init):
+    z = np.zeros_like(E) if init is None else np.where(m, init, 0.0)
+    shadow = E <= 0.0
+    converged = False
+    delta = np.inf
+    n_done = 0
+    for it in range(1, max_iter + 1):
+        n_done = it
+        # backward differences; pixels outside the mask (and beyond the frame) hold z = 0
+        zl = np.zeros_like(z)
+        zl[:, 1:] = z[:, :-1]
+        zb = np.zeros_like(z)
+        zb[:-1, :] = z[1:, :]  # y - 1 is the row below
+        p = z - zl
+        q = z - zb
+        r, rp, rq = _reflectance(p, q, s)
+        rc = np.maximum(r, 0.0)
+        f = np.where(shadow & (r <= 0), 0.0, E - rc)
+        df = -np.where(r > 0, rp + rq, 0.0)
+        # Levenberg-Marquardt damped Newton step (the Kalman-gain form of Tsai & Shah 1994),
+        # clipped to max_step pixels: the plain step -f/df diverges where df -> 0.
+        step = -f * df / (df * df + damping)
+        step = np.where(m, np.clip(step, -max_step, max_step), 0.0)
+        z = z + step
+        delta = float(np.sqrt(np.mean(step[m] ** 2)))
+        if delta < tol:
+            converged = True
+            break
+    z = np.where(m, z, 0.0)
+    return z, converged, n_done, {"final_update": delta}
+
+
+# --------------------------------------------------------------------------------------------
+# pentland1990
+# --------------------------------------------------------------------------------------------
+
+def _pentland(E, s, m, *, reg):
+    H, W = E.shape
+    ph, pw = 2 * H, 2 * W
+    src = np.zeros((ph, pw))
+    src[:H, :W] = np.where(m, E - s[2], 0.0)
+    F = np.fft.fft2(src)
+    kr = 2 * np.pi * np.fft.fftfreq(ph)[:, None]
+    kc = 2 * np.pi * np.fft.fftfreq(pw)[None, :]
+    # E - S_z ~ -S_x f_x - S_y f_y, with f_x = d/dcol and f_y = -d/drow
+    hsym = 1j * (-s[0] * kc + s[1] * kr)
+    a2 = np.abs(hsym) ** 2
+    eps = reg * (s[0] ** 2 + s[1] ** 2) * np.pi ** 2
+    Z = F * np.conj(hsym) / (a2 + eps)
+    Z[0, 0] = 0.0
+    z = np.real(np.fft.ifft2(Z))[:H, :W]
+    return np.where(m, z, 0.0)
+
+
+# --------------------------------------------------------------------------------------------
+# fast_marching
+# --------------------------------------------------------------------------------------------
+
+def _singular_seeds(E, m, delta):
+    """Connected pixel sets where ``E >= 1 - delta`` (normal along the light): singular points."""
+    cand = m & (E >= 1.0 - delta)
+    return cand
+
+
+def _fmm_eikonal(E, m, *, seeds, delta, e_min, order):
+    import skfmm  # noqa: PLC0415
+
+    g = np.sqrt(1.0 / np.maximum(E, e_min) ** 2 - 1.0)
+    if seeds == "singular":
+        phi = np.where(m, (1.0 - delta) - E, 1.0)
+        sign = -1.0
+    else:  # boundary: zero level at the silhouette, height grows inward (convex)
+        phi = np.where(m, 1.0, -1.0)
+        phi = np.pad(phi, 1, constant_values=-1.0)
+        sign = 1.0
+    speed = 1.0 / np.maximum(g, 1e-6)
+    if seeds == "singular":
+        pm = np.ma.MaskedArray(phi, mask=~m)
+        t = skfmm.travel_time(pm, np.ma.MaskedArray(speed, mask=~m), order=order)
+    else:
+        sp = np.pad(speed, 1, constant_values=1.0)
+        t = skfmm.travel_time(phi, sp, order=order)[1:-1, 1:-1]
+    t = np.asarray(np.ma.filled(t, np.nan), float)
+    t = np.where(m & np.isfinite(t), t, np.nan)
+    if seeds == "singular":
+        t = np.where(m & (phi < 0), 0.0, t)  # inside the seed level set
+    return sign * t, g
+
+
+def _fmm_oblique(E, s, m, *, e_min, seed_mask):
+    """Ordered upwind marching of ``u = S . X`` (Kimmel & Sethian 2001, oblique light).
+
+    With ``u = S_z z + S_x x + S_y y`` the irradiance equation becomes
+    ``E^2 (S_z^2 + |grad u - S_xy|^2) = (1 - S_xy . grad u)^2``; ``u`` is largest at the
+    singular points (normal = S) and decreases away from them.  We march ``T = u_max - u``
+    outward from the seeds with one-sided (upwind) differences, solving the quadratic for ``T``
+    at each accepted neighbour, as in the fast marching method.
+    """
+    H, W = E.shape
+    sx, sy = s[0], s[1]
+    sxy2 = sx * sx + sy * sy
+    Ec = np.maximum(E, e_min)
+    INF = np.inf
+    T = np.full((H, W), INF)
+    done = np.zeros((H, W), bool)
+    heap = []
+    for i, j in zip(*np.nonzero(seed_mask), strict=True):
+        T[i, j] = 0.0
+        heap.append((0.0, int(i), int(j)))
+    heapq.heapify(heap)
+    mm = m.tolist()
+    Tl = T.tolist()
+    dn = done.tolist()
+    El = Ec.tolist()
+
+    def solve(i, j):
+        # candidate one-sided differences. grad u = -grad T. For the x axis the upwind
+        # neighbour is the accepted one with the smaller T; the derivative T_x = (T - Tn) * sgn.
+        e2 = El[i][j] ** 2
+        best = INF
+        opts_x = []
+        for jj, sg in ((j - 1, 1.0), (j + 1, -1.0)):
+            if 0 <= jj < W and mm[i][jj] and dn[i][jj]:
+                opts_x.append((Tl[i][jj], sg))
+        opts_y = []
+        for ii, sg in ((i + 1, 1.0), (i - 1, -1.0)):  # y up: row + 1 is y - 1
+            if 0 <= ii < H and mm[ii][j] and dn[ii][j]:
+                opts_y.append((Tl[ii][j], sg))
+        combos = [(ox, None) for ox in opts_x] + [(None, oy) for oy in opts_y]
+        combos += [(ox, oy) for ox in opts_x for oy in opts_y]
+        for ox, oy in combos:
+            # grad T = (a T + b): T_x = sgx (T - tx), T_y = sgy (T - ty); grad u = -grad T
+            ax = ox[1] if ox else 0.0
+            bx = -ox[1] * ox[0] if ox else 0.0
+            ay = oy[1] if oy else 0.0
+            by = -oy[1] * oy[0] if oy else 0.0
+            # u_x = -(ax T + bx), u_y = -(ay T + by)
+            # F(T) = e2 (sz^2 + (u_x - sx)^2 + (u_y - sy)^2) - (1 - sx u_x - sy u_y)^2 = 0
+            # write u_x - sx = -ax T - (bx + sx), etc.; 1 - sx u_x - sy u_y = (sx ax + sy ay) T + (1 + sx bx + sy by)
+            c1x, c0x = -ax, -(bx + sx)
+            c1y, c0y = -ay, -(by + sy)
+            l1 = sx * ax + sy * ay
+            l0 = 1.0 + sx * bx + sy * by
+            A = e2 * (c1x * c1x + c1y * c1y) - l1 * l1
+            B = 2 * e2 * (c1x * c0x + c1y * c0y) - 2 * l1 * l0
+            C = e2 * (s[2] ** 2 + c0x * c0x + c0y * c0y) - l0 * l0
+            tmin = max(ox[0] if ox else -INF, oy[0] if oy else -INF)
+            roots = []
+            if abs(A) > 1e-14:
+                disc = B * B - 4 * A * C
+                if disc >= 0:
+                    sq = math.sqrt(disc)
+                    roots = [(-B + sq) / (2 * A), (-B - sq) / (2 * A)]
+            elif abs(B) > 1e-14:
+                roots = [-C / B]
+            for t in roots:
+                if t >= tmin - 1e-12:
+                    # upwind consistency: the used neighbours must be below t; and the shading
+                    # must be lit (1 - S_xy . grad u > 0 means N . S > 0)
+                    lit = l1 * t + l0
+                    if lit > 0 and t < best:
+                        best = t
+        return best
+
+    count = 0
+    while heap:
+        t, i, j = heapq.heappop(heap)
+        if dn[i][j] or t > Tl[i][j]:
+            continue
+        dn[i][j] = True
+        count += 1
+        for ii, jj in ((i - 1, j), (i + 1, j), (i, j - 1), (i, j + 1)):
+            if 0 <= ii < H and 0 <= jj < W and mm[ii][jj] and not dn[ii][jj]:
+                tn = solve(ii, jj)
+                if tn < Tl[ii][jj]:
+                    Tl[ii][jj] = tn
+                    heapq.heappush(heap, (tn, ii, jj))
+    T = np.array(Tl)
+    # u = -T (plus a constant); z = (u - S_x x - S_y y) / S_z with x, y in pixels (y up)
+    xs = np.arange(W)[None, :].astype(float)
+    ys = -np.arange(H)[:, None].astype(float)
+    z = (-T - sx * xs - sy * ys) / s[2]
+    z = np.where(np.isfinite(T) & m, z, np.nan)
+    return z, count, sxy2
+
+
+def _fill_unreached(z, m):
+    """Fill mask pixels the marching did not reach (NaN) by nearest reached value."""
+    bad = m & ~np.isfinite(z)
+    if not bad.any():
+        return z, 0
+    good = m & np.isfinite(z)
+    if not good.any():
+        return np.zeros_like(z), int(bad.sum())
+    idx = ndimage.distance_transform_edt(~good, return_distances=False, return_indices=True)
+    zf = z[idx[0], idx[1]]
+    return np.where(m, np.where(good, z, zf), 0.0), int(bad.sum())
+
+
+# --------------------------------------------------------------------------------------------
+# public API
+# --------------------------------------------------------------------------------------------
+
+def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, mask=None,
+                       pixel_size: float = 1.0, max_iter: int | None = None, tol: float | None = None,
+                       boundary="auto", theta_max_deg: float = 88.0, smoothness: float = 1.0,
+                       smoothness_min: float = 0.02, integrability: float = 1.0, n_stages: int = 4, levels: int = 3,
+                       damping: float = 0.1, max_step: float = 0.2, regularization: float = 1e-2,
+                       seeds: str = "auto", singular_delta: float = 1e-3, e_min: float = 1e-2) -> SFSResult:
+    r"""Height and normals of a Lambertian surface from one image under a known distant light.
+
+    Solves the image irradiance equation ``E(x, y) = R(p, q)`` (module docstring) with
+    ``E = image / albedo`` for ``z = f(x, y)``: orthographic view along ``-z``, uniform known
+    albedo, one distant source of known direction, no interreflections, no cast shadows
+    (attached shadows, ``E = 0``, are treated as "no constraint where ``R <= 0``").
+
+    Parameters
+    ----------
+    image : (H, W) array
+        Linear image (>= 0).
+    light : (3,) array
+        Direction toward the source in the camera frame (normalised here); needs ``z > 0``.
+    method : {"horn1989", "tsai_shah1994", "pentland1990", "fast_marching"}
+        ``"horn1989"``
+            Horn, "Height and gradient from shading" (IJCV 1990 / AI Memo 1989).  Minimises
+            ``sum (E - R(p,q))^2 + lambda sum |grad p|^2 + |grad q|^2 + mu sum (z_x - p)^2 +
+            (z_y - q)^2`` (``lambda = smoothness``, ``mu = integrability``; z_x, z_y forward
+            differences on edges inside the mask) jointly over ``(p, q, z)``.  Horn iterates the
+            Euler-Lagrange equations pixel by pixel (a Jacobi scheme); here the same functional is
+            minimised by L-BFGS (analytic gradient), coarse to fine over ``levels`` pyramid
+            levels (2x2 block means), which reaches the same stationary points far faster;
+            ``lambda`` is decreased geometrically to ``smoothness_min`` over ``n_stages`` stages
+            as Horn recommends.  Normals come from the final ``(p, q)``.  Boundary
+            condition: on occluding-contour pixels the gradient is fixed (Dirichlet) with tilt
+            from the silhouette's outward normal and slant from the brightness (the root
+            nearest 90 degrees, at most ``theta_max_deg``); elsewhere natural boundary.
+            Assumes the mask's edge (not the image frame) is an occluding contour when
+            ``boundary="auto"``.
+        ``"tsai_shah1994"``
+            Tsai & Shah, "Shape from shading using linear approximation" (IVC 1994).  With
+            backward differences ``p = z(x,y) - z(x-1,y)``, ``q = z(x,y) - z(x,y-1)`` the
+            function ``f(z) = E - R(p, q)`` is linearised in ``z`` at each pixel and solved by
+            a Jacobi Newton iteration from ``z = 0``.  The plain step ``-f / f'`` diverges where
+            ``f' -> 0`` (e.g. at the flat start under a frontal light), so the step is the
+            damped (Levenberg-Marquardt / Kalman-gain) ``-f f' / (f'^2 + damping)``, clipped to
+            ``max_step`` pixels.  Where the backward neighbour is outside the mask the forward
+            one is used.  Under a frontal light the flat start is a stationary point; the
+            iteration then starts from a small dome (distance to the mask edge x 1e-2).
+        ``"pentland1990"``
+            Pentland, "Linear shape from shading" (IJCV 1990).  Linearises ``R`` at ``p = q = 0``:
+            ``E - S_z = -S_x f_x - S_y f_y`` and solves it in the Fourier domain,
+            ``Z(w) = F[E - S_z] conj(H) / (|H|^2 + eps)``, ``H = -i (S_x w_x + S_y w_y)``
+            (Wiener-regularised where ``H`` vanishes; ``eps = regularization * |S_xy|^2 pi^2``),
+            on a 2x zero-padded grid, with ``E - S_z`` set to 0 outside the mask.  Cannot see
+            frequencies perpendicular to the light's tilt and fails for a frontal light
+            (then returns the flat surface with a warning).  Direct: ``n_iter = 0``.
+        ``"fast_marching"``
+            Kimmel & Sethian, "Optimal algorithm for shape from shading and path planning"
+            (JMIV 2001).  Frontal light: the eikonal equation ``|grad z| = sqrt(1/E^2 - 1)``
+            solved by fast marching (scikit-fmm) from the singular points
+            (``E >= 1 - singular_delta``; all taken as maxima of one height, the convex
+            choice) or from the occluding boundary (``z = 0`` there, height growing inward).
+            ``seeds="auto"`` uses singular points when present, else the boundary.  Oblique
+            light: the same paper's transformation to ``u = S . X`` gives
+            ``E^2 (S_z^2 + |grad u - S_xy|^2) = (1 - S_xy . grad u)^2``, marched here by an
+            ordered upwind (Dijkstra-like) scheme from the singular points.  ``E`` is floored at
+            ``e_min`` (shadows become grazing slopes); unreached pixels take their nearest
+            reached value (reported in ``info["unreached"]`` with a warning).
+    albedo : float, optional
+        Uniform albedo (times source intensity).  Default: the brightest pixel in the mask,
+        i.e. assume some visible point faces the light (Pentland 1982's assumption).
+    mask : (H, W) bool, optional
+        Pixels of the surface.  Default: the whole image (then there is no occluding contour).
+    pixel_size : float
+        Pixel pitch in world units; the height is returned in these units.
+    max_iter : int, optional
+        Iteration budget (defaults: horn1989 200 L-BFGS iterations per pyramid level,
+        tsai_shah1994 500).
+    tol : float, optional
+        Stop when the RMS energy gradient (horn1989) or the RMS height update in pixels
+        (tsai_shah1994) falls below it (default 1e-4 for both).
+    boundary : "auto", "occluding", "free" or (H, W) bool
+        Occluding-contour pixels for ``horn1989``.  ``"auto"``/``"occluding"``: the mask's edge
+        minus the image frame; ``"free"``: none; an array: exactly those pixels.
+    seeds : {"auto", "singular", "boundary"}
+        Start set of ``fast_marching`` (``"boundary"`` only for a frontal light).
+    Other keywords tune one method each as described above.
+
+    Returns
+    -------
+    SFSResult
+        ``height`` (H, W) in ``pixel_size`` units with mean zero on the mask (the offset is
+        free), ``normals`` (H, W, 3), ``converged``, ``n_iter``, ``method``, ``light``,
+        ``albedo``, ``seconds``, ``info``.  A method that stops without meeting its tolerance
+        issues a ``RuntimeWarning`` naming the method and the last update size.  The outputs
+        never contain NaN.
+
+    Raises
+    ------
+    ValueError
+        On an unknown method or bad input (wrong shapes, NaN, negative pixels, light with
+        ``z <= 0``, non-positive albedo / pixel size, bad option values).
+
+    Notes
+    -----
+    Convex/concave ambiguity: under a frontal light ``f`` and ``-f`` give the same image; all
+    methods here pick the convex solution (contour boundary conditions, dome start, maxima at
+    the singular points).  Score with :func:`pbrbench.metrics.sfs.ambiguity_aware_scores`.
+    """
+    check_method(method, METHODS)
+    E, s, m, rho, h = _prepare(image, light, albedo, mask, pixel_size)
+    theta_max = math.radians(float(theta_max_deg))
+    if not 0 < theta_max < math.pi / 2:
+        raise ValueError(f"theta_max_deg: must lie in (0, 90), got {theta_max_deg!r}")
+    if isinstance(boundary, str):
+        check_method(boundary, ("auto", "occluding", "free"), "boundary")
+        bnd = occluding_boundary(m) if boundary in ("auto", "occluding") else np.zeros_like(m)
+    else:
+        bnd = check_mask(boundary, m.shape, "boundary") & m if np.asarray(boundary).any() else np.zeros_like(m)
+    check_method(seeds, ("auto", "singular", "boundary"), "seeds")
+    for name, v in (("smoothness", smoothness), ("smoothness_min", smoothness_min),
+                    ("integrability", integrability), ("damping", damping), ("max_step", max_step),
+                    ("regularization", regularization), ("singular_delta", singular_delta),
+                    ("e_min", e_min)):
+        check_positive(v, name)
+    n_stages = _check_int(n_stages, "n_stages")
+    levels = _check_int(levels, "levels")
+    frontal = float(np.hypot(s[0], s[1])) < 1e-6
+    t0 = time.perf_counter()
+    info: dict = {}
+    converged = True
+    n_iter = 0
+    p = q = None
+    z = None
+    if method == "horn1989":
+        mi = _check_int(200 if max_iter is None else max_iter, "max_iter")
+        tl = check_positive(1e-4 if tol is None else tol, "tol")
+        init = None
+        p, q, converged, n_iter, info = _horn_pyramid(
+            E, s, m, levels=levels, max_iter=mi, tol=tl, lam=float(smoothness), lam_min=float(smoothness_min),
+            mu=float(integrability), boundary=bnd, theta_max=theta_max, n_stages=n_stages)
+        z = integrate_gradients(p, q, mask=m) * h
+        if not converged:
+            warnings.warn(f"horn1989: stopped after {n_iter} iterations (max_iter={mi}) "
+                          f"with RMS energy gradient above tol={tl:g}; raise max_iter or tol",
+                          RuntimeWarning, stacklevel=2)
+    elif method == "tsai_shah1994":
+        mi = _check_int(500 if max_iter is None else max_iter, "max_iter")
+        tl = check_positive(1e-4 if tol is None else tol, "tol")
+        init = None
+        if frontal:
+            init = 1e-2 * ndimage.distance_transform_edt(np.pad(m, 1))[1:-1, 1:-1]
+        zp, converged, n_iter, info = _tsai_shah(E, s, m, max_iter=mi, tol=tl, damping=float(damping),
+                                                 max_step=float(max_step), init=init)
+        z = zp * h
+        if not converged:
+            warnings.warn(f"tsai_shah1994: stopped at max_iter={mi} with RMS height update "
+                          f"{info['final_update']:.3g} px > tol={tl:g}; raise max_iter or tol",
+                          RuntimeWarning, stacklevel=2)
+    elif method == "pentland1990":
+        if frontal:
+            warnings.warn("pentland1990: the linear term vanishes for a light along the view "
+                          "(S_x = S_y = 0); returning the flat surface", RuntimeWarning, stacklevel=2)
+            z = np.zeros_like(E)
+            converged = False
+        else:
+            z = _pentland(E, s, m, reg=float(regularization)) * h
+    else:  # fast_marching
+        sing = _singular_seeds(E, m, float(singular_delta))
+        mode = seeds
+        if mode == "auto":
+            mode = "singular" if sing.any() else "boundary"
+        if mode == "singular" and not sing.any():
+            raise ValueError(f"seeds='singular': no pixel has E >= 1 - singular_delta "
+                             f"({1 - singular_delta:g}); pass the albedo, raise singular_delta or "
+                             "use seeds='boundary'")
+        if frontal:
+            zp, gmag = _fmm_eikonal(E, m, seeds=mode, delta=float(singular_delta), e_min=float(e_min), order=2)
+            n_iter = int(np.isfinite(zp).sum())
+            # the eikonal fixes |grad z| = g exactly; keep the marched tilt, take the slant from g
+            zfill, _ = _fill_unreached(zp.copy(), m)
+            p, q = _pq_from_height(zfill, m)
+            gn = np.hypot(p, q)
+            scale = np.where(gn > 1e-12, gmag / np.maximum(gn, 1e-12), 0.0)
+            p, q = p * scale, q * scale
+        else:
+            if mode == "boundary":
+                raise ValueError("seeds='boundary': fast_marching supports boundary seeds only for a "
+                                 "light along the view; use seeds='singular' or 'auto'")
+            zp, n_iter, _ = _fmm_oblique(E, s, m, e_min=float(e_min), seed_mask=sing)
+        zp, unreached = _fill_unreached(zp, m)
+        info = {"seeds": mode, "n_seeds": int(sing.sum()) if mode == "singular" else int(occluding_boundary(m, exclude_border=False).sum()),
+                "unreached": unreached}
+        if unreached:
+            converged = False
+            warnings.warn(f"fast_marching: {unreached} mask pixel(s) were not reached from the seeds "
+                          "(disconnected or unlit); they take their nearest reached height",
+                          RuntimeWarning, stacklevel=2)
+        z = zp * h
+    z = np.where(m, np.nan_to_num(z), 0.0)
+    z[m] -= z[m].mean()
+    if p is None:
+        p, q = _pq_from_height(z / h, m)
+    normals = _normals_from_pq(np.nan_to_num(p), np.nan_to_num(q), m)
+    return SFSResult(height=z, normals=normals, converged=bool(converged), n_iter=int(n_iter), method=method,
+                     light=s, albedo=rho, seconds=time.perf_counter() - t0, info=info)
+
+
+def _disc_moments(slant: float, n: int = 201):
+    """Mean of ``max(0, N.S)`` and of its square over the image of a sphere (uniform on the disc)."""
+    u = (np.arange(n) + 0.5) / n * 2 - 1
+    x, y = np.meshgrid(u, u)
+    inside = x * x + y * y < 1
+    nz = np.sqrt(np.clip(1 - x * x - y * y, 0, None))
+    sh = np.maximum(0.0, x * math.sin(slant) + nz * math.cos(slant))[inside]
+    return sh.mean(), (sh * sh).mean()
+
+
+def light_from_shading(image, mask=None, *, method: str = "contour") -> LightEstimate:
+    r"""Estimate the distant light direction (and albedo) from one image of a Lambertian object.
+
+    Parameters
+    ----------
+    image : (H, W) array
+        Linear image (>= 0).
+    mask : (H, W) bool, optional
+        The object's pixels; ``"contour"`` needs a mask whose edge is an occluding contour.
+    method : {"contour", "lee_rosenfeld1985"}
+        ``"contour"`` (default; Nillius & Eklundh, CVPR 2001, with the albedo of Pentland 1982):
+        on an occluding contour the normal is the silhouette's outward normal ``(d, 0)``, so
+        ``I = rho (d . S_xy)`` at lit contour pixels: least squares for ``rho S_xy``.  The
+        albedo is the brightest pixel (some point faces the light, Pentland 1982), and
+        ``S_z = sqrt(1 - |S_xy|^2)``.  Contour pixels read slightly inside the true contour,
+        where ``I = rho N . S`` also carries ``S_z N_z``; the fit therefore includes a constant
+        term ``rho S_z c`` that absorbs it.
+        ``"lee_rosenfeld1985"`` (Lee & Rosenfeld, Artificial Intelligence 1985): the tilt is the
+        direction of the mean image gradient over the object's interior; the slant is found by
+        matching the ratio ``<I>^2 / <I^2>`` to its value for a sphere (normals uniform over the
+        image disc, attached shadows included), the albedo from ``<I>``.
+        Both assume one convex, sphere-like object of uniform albedo.
+
+    Returns
+    -------
+    LightEstimate
+        ``direction`` (3,) unit vector toward the source (``z >= 0``), ``albedo``, ``method``.
+
+    Raises
+    ------
+    ValueError
+        On an unknown method, bad image or mask, or too few lit contour pixels.
+    """
+    check_method(method, LIGHT_METHODS)
+    img = as_float_array(image, "image", ndim=(2,))
+    m = check_mask(mask, img.shape)
+    check_finite(img, "image", where=m)
+    if np.any(img[m] < 0):
+        raise ValueError("image: has negative values inside the mask; pass a linear image (>= 0)")
+    imax = float(img[m].max())
+    if imax <= 0:
+        raise ValueError("image: all zero inside the mask; the light cannot be estimated")
+    if method == "contour":
+        b = occluding_boundary(m)
+        dx, dy = _outward_directions(m)
+        lit = b & (img > 0.02 * imax)
+        if lit.sum() < 8:
+            raise ValueError(f"mask: only {int(lit.sum())} lit occluding-contour pixels (need >= 8); "
+                             "pass a mask whose edge is the object's silhouette, or use "
+                             "method='lee_rosenfeld1985'")
+        A = np.stack([dx[lit], dy[lit], np.ones(int(lit.sum()))], axis=1)
+        coef, *_ = np.linalg.lstsq(A, img[lit], rcond=None)
+        sxy = coef[:2] / imax
+        nxy = float(np.hypot(*sxy))
+        if nxy > 1:
+            sxy = sxy / nxy
+            nxy = 1.0
+        d = np.array([sxy[0], sxy[1], math.sqrt(max(0.0, 1 - nxy * nxy))])
+        return LightEstimate(direction=d / np.linalg.norm(d), albedo=imax, method=method)
+    # lee_rosenfeld1985
+    inner = ndimage.binary_erosion(m, iterations=2, border_value=0)
+    if inner.sum() < 16:
+        inner = m
+    gr, gc = np.gradient(img)
+    mx, my = float(gc[inner].mean()), float(-gr[inner].mean())
+    tilt = math.atan2(my, mx)
+    m1 = float(img[m].mean())
+    m2 = float((img[m] ** 2).mean())
+    ratio = m1 * m1 / m2
+    slants = np.linspace(0.0, math.radians(89.0), 90)
+    table = np.array([_disc_moments(a) for a in slants])
+    rt = table[:, 0] ** 2 / table[:, 1]
+    # the ratio decreases with the slant; interpolate on the reversed (increasing) arrays
+    slant = float(np.interp(ratio, rt[::-1], slants[::-1]))
+    e1 = float(np.interp(slant, slants, table[:, 0]))
+    rho = m1 / e1 if e1 > 0 else imax
+    d = np.array([math.sin(slant) * math.cos(tilt), math.sin(slant) * math.sin(tilt), math.cos(slant)])
+    return LightEstimate(direction=d, albedo=float(rho), method=method)

@@ -1,0 +1,165 @@
+"""Tests of pbrbench.infer.sfs on analytic Lambertian images (exact shapes known)."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from pbrbench.infer.sfs import METHODS, SFSResult, light_from_shading, shape_from_shading
+from pbrbench.metrics.sfs import normal_angle
+from pbrbench.shading.lambert import lambertian_images
+from pbrbench.shading.surfaces import on_grid
+
+HW = 1.1
+OBLIQUE = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+FRONTAL = np.array([0.0, 0.0, 1.0])
+
+
+def _scene(name, n, light, albedo=0.8):
+    s = on_grid(name, n, half_width=HW)
+    img = lambertian_images(s.normals, albedo, light[None])[0]
+    return s, img, 2 * HW / n
+
+
+def _flat_angle(s):
+    flat = np.zeros(s.normals.shape)
+    flat[..., 2] = 1.0
+    return normal_angle(flat, s.normals, s.mask)
+
+
+def test_fast_marching_frontal_sphere_meets_target():
+    s, img, h = _scene("sphere", 128, FRONTAL)
+    r = shape_from_shading(img, FRONTAL, method="fast_marching", albedo=0.8, mask=s.mask, pixel_size=h)
+    zt = np.where(s.mask, s.z, 0.0)
+    zt[s.mask] -= zt[s.mask].mean()
+    rmse = np.sqrt(np.mean((r.height - zt)[s.mask] ** 2))
+    assert normal_angle(r.normals, s.normals, s.mask) < 2.0
+    assert rmse < 0.01 * 1.0  # radius 1 in world units
+    assert r.converged and r.info["seeds"] == "singular"
+
+
+def test_fast_marching_boundary_seeds_frontal_sphere():
+    s, img, h = _scene("sphere", 96, FRONTAL)
+    r = shape_from_shading(img, FRONTAL, method="fast_marching", albedo=0.8, mask=s.mask,
+                           pixel_size=h, seeds="boundary")
+    # convex from the contour: the centre is the highest point
+    c = s.z.shape[0] // 2
+    assert r.height[c, c] > np.percentile(r.height[s.mask], 95)
+    # the silhouette is only known to a pixel, so boundary seeds are far less accurate than
+    # the singular point (~11 deg at 96 px); still much better than no shape
+    assert normal_angle(r.normals, s.normals, s.mask) < 0.5 * _flat_angle(s)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_every_method_beats_flat_on_oblique_sphere(method):
+    s, img, h = _scene("sphere", 64, OBLIQUE)
+    r = shape_from_shading(img, OBLIQUE, method=method, albedo=0.8, mask=s.mask, pixel_size=h,
+                           **({"max_iter": 100} if method == "horn1989" else {}))
+    assert isinstance(r, SFSResult)
+    assert np.all(np.isfinite(r.height)) and np.all(np.isfinite(r.normals))
+    assert np.all(r.height[~s.mask] == 0)
+    assert abs(r.height[s.mask].mean()) < 1e-9
+    assert normal_angle(r.normals, s.normals, s.mask) < _flat_angle(s)
+
+
+def test_horn_and_fast_marching_are_accurate_on_oblique_sphere():
+    s, img, h = _scene("sphere", 64, OBLIQUE)
+    fm = shape_from_shading(img, OBLIQUE, method="fast_marching", albedo=0.8, mask=s.mask, pixel_size=h)
+    assert normal_angle(fm.normals, s.normals, s.mask) < 6.0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        hn = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=s.mask, pixel_size=h, max_iter=100)
+    assert normal_angle(hn.normals, s.normals, s.mask) < 15.0
+
+
+def test_height_scales_with_pixel_size():
+    s, img, h = _scene("sphere", 64, FRONTAL)
+    a = shape_from_shading(img, FRONTAL, method="fast_marching", albedo=0.8, mask=s.mask, pixel_size=h)
+    b = shape_from_shading(img, FRONTAL, method="fast_marching", albedo=0.8, mask=s.mask, pixel_size=2 * h)
+    np.testing.assert_allclose(b.height, 2 * a.height, atol=1e-12)
+    np.testing.assert_allclose(b.normals, a.normals, atol=1e-12)
+
+
+def test_default_albedo_is_the_brightest_pixel():
+    s, img, h = _scene("sphere", 64, FRONTAL, albedo=0.5)
+    r = shape_from_shading(img, FRONTAL, method="fast_marching", mask=s.mask, pixel_size=h)
+    assert r.albedo == pytest.approx(img[s.mask].max())
+    assert normal_angle(r.normals, s.normals, s.mask) < 3.0
+
+
+def test_pentland_frontal_light_warns_and_returns_flat():
+    s, img, h = _scene("sphere", 48, FRONTAL)
+    with pytest.warns(RuntimeWarning, match="pentland1990"):
+        r = shape_from_shading(img, FRONTAL, method="pentland1990", albedo=0.8, mask=s.mask)
+    assert not r.converged
+    assert np.all(r.height == 0)
+
+
+def test_iteration_budget_exhausted_warns_without_nan():
+    s, img, h = _scene("sphere", 48, OBLIQUE)
+    for method in ("horn1989", "tsai_shah1994"):
+        with pytest.warns(RuntimeWarning, match=method):
+            r = shape_from_shading(img, OBLIQUE, method=method, albedo=0.8, mask=s.mask, max_iter=2, tol=1e-12)
+        assert not r.converged and r.n_iter == 2
+        assert np.all(np.isfinite(r.height))
+
+
+def test_tsai_shah_undamped_limit_is_kept_finite():
+    # a tiny damping approximates the plain Newton step; the clip keeps it finite
+    s, img, h = _scene("sphere", 48, OBLIQUE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = shape_from_shading(img, OBLIQUE, method="tsai_shah1994", albedo=0.8, mask=s.mask, damping=1e-12)
+    assert np.all(np.isfinite(r.height)) and np.abs(r.height).max() < 500 * 0.2
+
+
+def test_light_from_shading_contour_and_statistics():
+    for light in (OBLIQUE, np.array([-0.3, 0.4, 0.866])):
+        light = light / np.linalg.norm(light)
+        s, img, _ = _scene("sphere", 128, light)
+        est = light_from_shading(img, s.mask)
+        assert np.degrees(np.arccos(est.direction @ light)) < 3.0
+        assert est.albedo == pytest.approx(0.8, rel=0.02)
+        lr = light_from_shading(img, s.mask, method="lee_rosenfeld1985")
+        assert np.degrees(np.arccos(lr.direction @ light)) < 10.0
+
+
+def test_light_from_shading_needs_a_contour():
+    img = np.full((32, 32), 0.5)
+    with pytest.raises(ValueError, match="contour"):
+        light_from_shading(img)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"method": "nope"}, "method"),
+        ({"light": [0, 0, -1]}, "light"),
+        ({"light": [0, 0]}, "light"),
+        ({"light": [0, 0, 0]}, "light"),
+        ({"albedo": -1.0}, "albedo"),
+        ({"pixel_size": 0.0}, "pixel_size"),
+        ({"mask": np.zeros((16, 16), bool)}, "mask"),
+        ({"mask": np.ones((8, 8), bool)}, "mask"),
+        ({"max_iter": 0}, "max_iter"),
+        ({"boundary": "wrong"}, "boundary"),
+        ({"seeds": "wrong"}, "seeds"),
+        ({"theta_max_deg": 95.0}, "theta_max_deg"),
+        ({"image": -np.ones((16, 16))}, "image"),
+        ({"image": np.full((16, 16), np.nan)}, "image"),
+        ({"image": np.ones(16)}, "image"),
+    ],
+)
+def test_value_errors(kwargs, match):
+    args = {"image": np.full((16, 16), 0.5), "light": [0.3, 0.0, 1.0]}
+    args.update(kwargs)
+    image, light = args.pop("image"), args.pop("light")
+    with pytest.raises(ValueError, match=match):
+        shape_from_shading(image, light, **args)
+
+
+def test_light_from_shading_value_errors():
+    with pytest.raises(ValueError, match="method"):
+        light_from_shading(np.ones((8, 8)), method="nope")
+    with pytest.raises(ValueError, match="image"):
+        light_from_shading(np.zeros((8, 8)))
