@@ -304,61 +304,19 @@ def _check_int(v, name):
 # horn1989
 # --------------------------------------------------------------------------------------------
 
-def _lbfgs(fun, x, *, maxiter, gtol, memory=10):
-    """Minimise a smooth function by L-BFGS (two-loop recursion) with Armijo backtracking.
-
-    Nocedal & Wright, "Numerical Optimization", Algorithm 7.4.  Returns ``(x, f, n_iter,
-    converged)``; converged when the RMS gradient falls below ``gtol``.
-    """
-    f, g = fun(x)
-    S, Y, RHO = [], [], []
-    n = x.size
-    for it in range(1, maxiter + 1):
-        if math.sqrt(float(g @ g) / n) < gtol:
-            return x, f, it - 1, True
-        d = -g.copy()
-        alphas = []
-        for s_i, y_i, r_i in zip(reversed(S), reversed(Y), reversed(RHO), strict=True):
-            a = r_i * float(s_i @ d)
-            alphas.append(a)
-            d -= a * y_i
-        if S:
-            d *= float(S[-1] @ Y[-1]) / float(Y[-1] @ Y[-1])
-        else:
-            d /= max(1.0, math.sqrt(float(g @ g)))
-        for (s_i, y_i, r_i), a in zip(zip(S, Y, RHO, strict=True), reversed(alphas), strict=True):
-            b = r_i * float(y_i @ d)
-            d += (a - b) * s_i
-        gd = float(g @ d)
-        if gd >= 0:  # not a descent direction: restart with steepest descent
-            S, Y, RHO = [], [], []
-            d = -g / max(1.0, math.sqrt(float(g @ g)))
-            gd = float(g @ d)
-        t = 1.0
-        for _ in range(30):
-            xn = x + t * d
-            fn, gn = fun(xn)
-            if fn <= f + 1e-4 * t * gd:
-                break
-            t *= 0.5
-        else:
-            return x, f, it, False
-        sv, yv = xn - x, gn - g
-        sy = float(sv @ yv)
-        if sy > 1e-12:
-            S.append(sv)
-            Y.append(yv)
-            RHO.append(1.0 / sy)
-            if len(S) > memory:
-                S.pop(0)
-                Y.pop(0)
-                RHO.pop(0)
-        x, f, g = xn, fn, gn
-    return x, f, maxiter, math.sqrt(float(g @ g) / n) < gtol
+def _nb_sum(a, ex, ey):
+    """Sum of ``a`` over each pixel's 4-neighbours joined by an in-mask edge, and their count."""
+    s = np.zeros_like(a)
+    s[:, :-1] += ex * a[:, 1:]
+    s[:, 1:] += ex * a[:, :-1]
+    s[:-1, :] += ey * a[1:, :]
+    s[1:, :] += ey * a[:-1, :]
+    return s
 
 
-def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_stages, init=None):
-    """Minimise Horn's functional over (p, q, z) on the mask by L-BFGS with continuation in lambda.
+def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_stages, init=None,
+          stages=True, omega=1.7):
+    """Horn's (1989) iterative scheme on one grid: red-black Gauss-Seidel on (p, q), then on z.
 
     Discrete energy (x-edges ``a -> b`` join horizontal neighbours, y-edges vertical ones, both
     pixels in the mask)::
@@ -367,108 +325,129 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
           + lam * sum_edges ((p_a - p_b)^2 + (q_a - q_b)^2)
           + mu  * (sum_x-edges (z_b - z_a - (p_a + p_b)/2)^2 + sum_y-edges (z_b - z_a + (q_a + q_b)/2)^2)
 
-    (y up: moving one row down changes z by ``-q``).  Occluding-contour pixels keep their
-    gradient fixed (Dirichlet).  Attached-shadow pixels (``E = 0``) contribute only where
-    ``R > 0``.
+    (y up: moving one row down changes z by ``-q``).  One sweep minimises ``J`` over each pixel's
+    ``(p, q)`` with the reflectance linearised at the current value (Horn's update, with the
+    Gauss-Newton term ``R_p^2``, ``R_q^2`` kept in the denominator so the step never overshoots),
+    red pixels then black ones, then over each pixel's ``z`` (a Gauss-Seidel sweep of the Poisson
+    equation ``L z = div (p, q)``).  Occluding-contour pixels keep their gradient fixed
+    (Dirichlet).  Attached-shadow pixels (``E = 0``) contribute only where ``R > 0``.
+    Returns ``p, q, z, converged, sweeps, last RMS (p, q) update``.
     """
     fixed = boundary & m
     pb, qb = _contour_pq(E, s, m, fixed, theta_max)
     free = m & ~fixed
-    nf = int(free.sum())
-    ex = m[:, :-1] & m[:, 1:]
-    ey = m[:-1, :] & m[1:, :]
+    ex = (m[:, :-1] & m[:, 1:]).astype(float)  # edge indicators as weights
+    ey = (m[:-1, :] & m[1:, :]).astype(float)
+    nx = np.zeros(E.shape)
+    nx[:, :-1] += ex
+    nx[:, 1:] += ex
+    ny = np.zeros(E.shape)
+    ny[:-1, :] += ey
+    ny[1:, :] += ey
+    nn = nx + ny
     shadow = E <= 0.0
-    data_w = m.astype(float)
-    lam_list = np.geomspace(lam, lam_min, n_stages) if n_stages > 1 else np.array([lam_min])
-    P = np.where(fixed, pb, 0.0)
-    Q = np.where(fixed, qb, 0.0)
-    if init is not None:
+    ii, jj = np.indices(E.shape)
+    red = (ii + jj) % 2 == 0
+    colours = (free & red, free & ~red)
+    zcol = (m & red, m & ~red)
+    nzk = np.maximum(nn, 1.0)
+    if init is None:
+        P = np.where(fixed, pb, 0.0)
+        Q = np.where(fixed, qb, 0.0)
+        Z = integrate_gradients(P, Q, mask=m)
+    else:
         P = np.where(fixed, pb, np.where(m, init[0], 0.0))
         Q = np.where(fixed, qb, np.where(m, init[1], 0.0))
-    Z = integrate_gradients(P, Q, mask=m)
-    state = {"nfev": 0}
-
-    def unpack(x):
-        p = P.copy()
-        q = Q.copy()
-        z = np.zeros_like(E)
-        p[free] = x[:nf]
-        q[free] = x[nf:2 * nf]
-        z[m] = x[2 * nf:]
-        return p, q, z
-
-    def fun(x, lam_k):
-        state["nfev"] += 1
-        p, q, z = unpack(x)
-        r, rp, rq = _reflectance(p, q, s)
-        pos = r > 0
-        res = np.where(shadow & ~pos, 0.0, E - np.where(pos, r, 0.0)) * data_w
-        J = float(np.sum(res * res))
-        gp = -2 * res * np.where(pos, rp, 0.0)
-        gq = -2 * res * np.where(pos, rq, 0.0)
-        gz = np.zeros_like(E)
-        # smoothness
-        for a, axis in ((p, 1), (q, 1), (p, 0), (q, 0)):
-            if axis == 1:
-                d = np.where(ex, a[:, 1:] - a[:, :-1], 0.0)
-            else:
-                d = np.where(ey, a[1:, :] - a[:-1, :], 0.0)
-            J += lam_k * float(np.sum(d * d))
-            g = gp if a is p else gq
-            if axis == 1:
-                g[:, 1:] += 2 * lam_k * d
-                g[:, :-1] -= 2 * lam_k * d
-            else:
-                g[1:, :] += 2 * lam_k * d
-                g[:-1, :] -= 2 * lam_k * d
-        # integrability
-        rx = np.where(ex, z[:, 1:] - z[:, :-1] - 0.5 * (p[:, 1:] + p[:, :-1]), 0.0)
-        ry = np.where(ey, z[1:, :] - z[:-1, :] + 0.5 * (q[1:, :] + q[:-1, :]), 0.0)
-        J += mu * float(np.sum(rx * rx) + np.sum(ry * ry))
-        gz[:, 1:] += 2 * mu * rx
-        gz[:, :-1] -= 2 * mu * rx
-        gz[1:, :] += 2 * mu * ry
-        gz[:-1, :] -= 2 * mu * ry
-        gp[:, 1:] -= mu * rx
-        gp[:, :-1] -= mu * rx
-        gq[1:, :] += mu * ry
-        gq[:-1, :] += mu * ry
-        grad = np.concatenate([gp[free], gq[free], gz[m]])
-        return J, grad
-
-    x = np.concatenate([P[free], Q[free], Z[m]])
-    lam_list = lam_list[-max_iter:]  # never more stages than iterations
+        Z = np.where(m, init[2], 0.0)
+    lam_list = np.geomspace(lam, lam_min, n_stages) if (stages and n_stages > 1) else np.array([lam_min])
+    lam_list = lam_list[-max_iter:]
     per_stage = max(1, max_iter // len(lam_list))
-    n_iter = 0
+    nf = max(int(free.sum()), 1)
+    sweeps = 0
+    delta = np.inf
     converged = False
     for k, lam_k in enumerate(lam_list):
         last = k == len(lam_list) - 1
-        budget = max_iter - n_iter if last else per_stage
-        x, fval, nit, ok = _lbfgs(lambda v, lk=float(lam_k): fun(v, lk), x, maxiter=max(1, budget), gtol=tol)
-        n_iter += nit
-        if last:
-            converged = ok
-    p, q, _ = unpack(x)
-    return p, q, converged, n_iter, {"final_energy": float(fval),
-                                     "final_lambda": float(lam_list[-1]), "n_boundary": int(fixed.sum()),
-                                     "nfev": state["nfev"]}
+        budget = max_iter - sweeps if last else per_stage
+        for _ in range(max(1, budget)):
+            sweeps += 1
+            dsum = 0.0
+            for col in colours:
+                r, rp, rq = _reflectance(P, Q, s)
+                pos = r > 0
+                res = np.where(pos, E - r, np.where(shadow, 0.0, E))
+                rp *= pos
+                rq *= pos
+                # integrability targets seen from each pixel: c = z_b - z_a - p_b / 2 on its x-edges
+                cx = np.zeros_like(E)
+                cx[:, :-1] += ex * (Z[:, 1:] - Z[:, :-1] - 0.5 * P[:, 1:])
+                cx[:, 1:] += ex * (Z[:, 1:] - Z[:, :-1] - 0.5 * P[:, :-1])
+                # y-edges a (row i) -> b (row i+1): z_b - z_a + (q_a + q_b)/2; target for q_a is
+                # -(z_b - z_a) - q_b / 2
+                cy = np.zeros_like(E)
+                cy[:-1, :] += ey * (Z[:-1, :] - Z[1:, :] - 0.5 * Q[1:, :])
+                cy[1:, :] += ey * (Z[:-1, :] - Z[1:, :] - 0.5 * Q[:-1, :])
+                # quadratic model per pixel in (dp, dq): [[a11, a12], [a12, a22]] d = [b1, b2]
+                a11 = rp * rp + lam_k * nn + 0.25 * mu * nx
+                a22 = rq * rq + lam_k * nn + 0.25 * mu * ny
+                a12 = rp * rq
+                b1 = (res * rp + lam_k * (_nb_sum(P, ex, ey) - nn * P) + 0.5 * mu * (cx - 0.5 * nx * P))
+                b2 = (res * rq + lam_k * (_nb_sum(Q, ex, ey) - nn * Q) + 0.5 * mu * (cy - 0.5 * ny * Q))
+                det = a11 * a22 - a12 * a12
+                det = np.where(det > 1e-12, det, 1e-12)
+                dp = (a22 * b1 - a12 * b2) / det
+                dq = (a11 * b2 - a12 * b1) / det
+                dp = np.where(col, omega * dp, 0.0)
+                dq = np.where(col, omega * dq, 0.0)
+                P += dp
+                Q += dq
+                dsum += float(np.sum(dp * dp + dq * dq))
+            # z: Gauss-Seidel on the Poisson equation with targets gx = (p_a + p_b)/2, gy = -(q_a + q_b)/2
+            gx = ex * 0.5 * (P[:, :-1] + P[:, 1:])
+            gy = ey * -0.5 * (Q[:-1, :] + Q[1:, :])
+            for col in zcol:
+                acc = _nb_sum(Z, ex, ey)
+                acc[:, :-1] -= gx
+                acc[:, 1:] += gx
+                acc[:-1, :] -= gy
+                acc[1:, :] += gy
+                Z = np.where(col, Z + omega * (acc / nzk - Z), Z)
+            delta = math.sqrt(dsum / nf)
+            if last and delta < tol:
+                converged = True
+                break
+    return P, Q, Z, converged, sweeps, delta
 
 
-def _horn_pyramid(E, s, m, *, levels, **kw):
-    """Coarse-to-fine driver: solve on 2x2-block-averaged images first and upsample (p, q)."""
-    if levels > 1 and min(E.shape) >= 32 and E.shape[0] % 2 == 0 and E.shape[1] % 2 == 0:
-        H, W = E.shape
+def _horn_pyramid(E, s, m, *, levels, coarse_iter, **kw):
+    """Coarse-to-fine driver: solve on 2x2-block-averaged images first, upsample (p, q, 2 z).
+
+    The coarsest level runs the full lambda continuation with ``coarse_iter`` sweeps; finer
+    levels start from the upsampled solution at the final lambda.  Returns ``(p, q, converged,
+    sweeps on the finest grid, last update, total sweeps)``.
+    """
+    H, W = E.shape
+    if levels > 1 and min(H, W) >= 32 and H % 2 == 0 and W % 2 == 0:
         mc = m.reshape(H // 2, 2, W // 2, 2).all(axis=(1, 3))
         if mc.sum() >= 16:
             Ec = (np.where(m, E, 0.0).reshape(H // 2, 2, W // 2, 2).sum(axis=(1, 3))
                   / np.maximum(m.reshape(H // 2, 2, W // 2, 2).sum(axis=(1, 3)), 1))
             kc = dict(kw)
             kc["boundary"] = occluding_boundary(mc) if kw["boundary"].any() else np.zeros_like(mc)
-            pc, qc, _, itc, _ = _horn_pyramid(Ec, s, mc, levels=levels - 1, **kc)
+            pc, qc, zc, _, _, _, tot = _horn_pyramid(Ec, s, mc, levels=levels - 1, coarse_iter=coarse_iter, **kc)
             up = np.ones((2, 2))
-            kw = dict(kw)
-            kw["init"] = (np.kron(pc, up), np.kron(qc, up))
-    return _horn(E, s, m, **kw)
+            init = (np.kron(pc, up), np.kron(qc, up), 2.0 * np.kron(zc, up))
+            # pixels of the fine mask outside the coarse one: nearest coarse value
+            known = np.kron(mc, up).astype(bool)
+            if (m & ~known).any():
+                idx = ndimage.distance_transform_edt(~known, return_distances=False, return_indices=True)
+                init = tuple(a[idx[0], idx[1]] for a in init)
+            p, q, z, ok, it, d = _horn(E, s, m, init=init, stages=False, **kw)
+            return p, q, z, ok, it, d, tot + it
+    kw = dict(kw)
+    kw["max_iter"] = max(kw["max_iter"], coarse_iter)
+    p, q, z, ok, it, d = _horn(E, s, m, **kw)
+    return p, q, z, ok, it, d, it
 
 
 # --------------------------------------------------------------------------------------------
@@ -564,7 +543,7 @@ def _fmm_eikonal(E, m, *, seeds, delta, e_min, order):
     return sign * t, g
 
 
-def _fmm_oblique(E, s, m, *, e_min, seed_mask):
+def _fmm_oblique(E, s, m, *, e_min, seed_mask, seed_values=None, upward=False):
     """Ordered upwind marching of ``u = S . X`` (Kimmel & Sethian 2001, oblique light).
 
     With ``u = S_z z + S_x x + S_y y`` the irradiance equation becomes
@@ -576,14 +555,16 @@ def _fmm_oblique(E, s, m, *, e_min, seed_mask):
     H, W = E.shape
     sx, sy = s[0], s[1]
     sxy2 = sx * sx + sy * sy
+    k = 1.0 if upward else -1.0  # u = k T + const: T grows downhill (from maxima) or uphill (from the contour)
     Ec = np.maximum(E, e_min)
     INF = np.inf
     T = np.full((H, W), INF)
     done = np.zeros((H, W), bool)
     heap = []
     for i, j in zip(*np.nonzero(seed_mask), strict=True):
-        T[i, j] = 0.0
-        heap.append((0.0, int(i), int(j)))
+        t0 = 0.0 if seed_values is None else float(seed_values[i, j])
+        T[i, j] = t0
+        heap.append((t0, int(i), int(j)))
     heapq.heapify(heap)
     mm = m.tolist()
     Tl = T.tolist()
@@ -614,10 +595,10 @@ def _fmm_oblique(E, s, m, *, e_min, seed_mask):
             # u_x = -(ax T + bx), u_y = -(ay T + by)
             # F(T) = e2 (sz^2 + (u_x - sx)^2 + (u_y - sy)^2) - (1 - sx u_x - sy u_y)^2 = 0
             # write u_x - sx = -ax T - (bx + sx), etc.; 1 - sx u_x - sy u_y = (sx ax + sy ay) T + (1 + sx bx + sy by)
-            c1x, c0x = -ax, -(bx + sx)
-            c1y, c0y = -ay, -(by + sy)
-            l1 = sx * ax + sy * ay
-            l0 = 1.0 + sx * bx + sy * by
+            c1x, c0x = k * ax, k * bx - sx
+            c1y, c0y = k * ay, k * by - sy
+            l1 = -k * (sx * ax + sy * ay)
+            l0 = 1.0 - k * (sx * bx + sy * by)
             A = e2 * (c1x * c1x + c1y * c1y) - l1 * l1
             B = 2 * e2 * (c1x * c0x + c1y * c0y) - 2 * l1 * l0
             C = e2 * (s[2] ** 2 + c0x * c0x + c0y * c0y) - l0 * l0
@@ -656,9 +637,54 @@ def _fmm_oblique(E, s, m, *, e_min, seed_mask):
     # u = -T (plus a constant); z = (u - S_x x - S_y y) / S_z with x, y in pixels (y up)
     xs = np.arange(W)[None, :].astype(float)
     ys = -np.arange(H)[:, None].astype(float)
-    z = (-T - sx * xs - sy * ys) / s[2]
+    z = (k * T - sx * xs - sy * ys) / s[2]
     z = np.where(np.isfinite(T) & m, z, np.nan)
     return z, count, sxy2
+
+
+def _global_max_seed(E, s, m, sing, *, e_min, coarse=64, max_candidates=6):
+    """Keep the one singular component at the global maximum of ``u = S . X``.
+
+    Singular points (``N = S``) are the critical points of ``u`` on the surface: maxima, but also
+    saddles (a vase's neck) and lower maxima, whose ``u`` differ; seeding them all at one value
+    is wrong, and the image cannot tell a maximum from a saddle locally.  We march ``u`` from
+    each component alone on a <= ``coarse``-pixel subsampled grid and keep the component whose
+    solution puts the lit occluding contour (pixels whose brightness matches a contour normal,
+    ``E ~ d . S_xy``) at the most uniform depth: this assumes the silhouette lies in one depth
+    plane, true for solids of revolution about an axis in the image plane (sphere, vase).
+    Lower maxima are then reached by the march as ridges (a local error only).
+    """
+    # group nearby singular pixels (noise scatters them) and test at most ``max_candidates``
+    # components, the largest first
+    grow = ndimage.binary_dilation(sing, iterations=max(1, min(E.shape) // 64)) & m
+    lab, k = ndimage.label(grow)
+    lab = np.where(sing, lab, 0)
+    if k <= 1:
+        return sing, k
+    sizes = ndimage.sum(sing, lab, range(1, k + 1))
+    order = [int(c) + 1 for c in np.argsort(-sizes)[:max_candidates]]
+    f = max(1, min(E.shape) // coarse)
+    Ec, mc = E[::f, ::f], m[::f, ::f]
+    b = occluding_boundary(mc)
+    dx, dy = _outward_directions(mc)
+    pred = np.maximum(0.0, dx * s[0] + dy * s[1])
+    cont = b & (Ec > 0.05) & (np.abs(Ec - pred) < 0.25)
+    if cont.sum() < 4:
+        cont = b
+    best, best_c = np.inf, 1
+    cents = ndimage.center_of_mass(sing, lab, order)
+    for c, (ci, cj) in zip(order, cents, strict=True):
+        seed = np.zeros_like(mc)
+        i, j = min(int(round(ci / f)), mc.shape[0] - 1), min(int(round(cj / f)), mc.shape[1] - 1)
+        if not mc[i, j]:
+            continue
+        seed[i, j] = True
+        zc, _, _ = _fmm_oblique(Ec, s, mc, e_min=e_min, seed_mask=seed)
+        v = zc[cont & np.isfinite(zc)]
+        score = float(np.std(v)) if v.size >= 4 else np.inf
+        if score < best:
+            best, best_c = score, c
+    return lab == best_c, k
 
 
 def _fill_unreached(z, m):
@@ -681,7 +707,7 @@ def _fill_unreached(z, m):
 def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, mask=None,
                        pixel_size: float = 1.0, max_iter: int | None = None, tol: float | None = None,
                        boundary="auto", theta_max_deg: float = 88.0, smoothness: float = 1.0,
-                       smoothness_min: float = 0.02, integrability: float = 1.0, n_stages: int = 4, levels: int = 3,
+                       smoothness_min: float = 0.02, integrability: float = 1.0, n_stages: int = 4, levels: int = 5,
                        damping: float = 0.1, max_step: float = 0.2, regularization: float = 1e-2,
                        seeds: str = "auto", singular_delta: float = 1e-3, e_min: float = 1e-2) -> SFSResult:
     r"""Height and normals of a Lambertian surface from one image under a known distant light.
@@ -702,10 +728,15 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
             Horn, "Height and gradient from shading" (IJCV 1990 / AI Memo 1989).  Minimises
             ``sum (E - R(p,q))^2 + lambda sum |grad p|^2 + |grad q|^2 + mu sum (z_x - p)^2 +
             (z_y - q)^2`` (``lambda = smoothness``, ``mu = integrability``; z_x, z_y forward
-            differences on edges inside the mask) jointly over ``(p, q, z)``.  Horn iterates the
-            Euler-Lagrange equations pixel by pixel (a Jacobi scheme); here the same functional is
-            minimised by L-BFGS (analytic gradient), coarse to fine over ``levels`` pyramid
-            levels (2x2 block means), which reaches the same stationary points far faster;
+            differences on edges inside the mask) jointly over ``(p, q, z)`` by Horn's own
+            iterative scheme: each sweep updates every pixel's ``(p, q)`` from its neighbours'
+            mean, the integrability target and the reflectance linearised at the current value
+            (with the Gauss-Newton term ``R_p^2`` in the denominator, so it never overshoots),
+            then ``z`` by a Gauss-Seidel step of the Poisson equation ``L z = div (p, q)``;
+            red-black ordering, over-relaxed (``omega = 1.7``), coarse to fine over ``levels``
+            pyramid levels (2x2 block means; the coarsest grid gets ``5 max_iter`` sweeps, each
+            finer one ``max_iter`` from the upsampled solution); the final height integrates
+            ``(p, q)`` exactly (:func:`integrate_gradients`).  On the coarsest grid
             ``lambda`` is decreased geometrically to ``smoothness_min`` over ``n_stages`` stages
             as Horn recommends.  Normals come from the final ``(p, q)``.  Boundary
             condition: on occluding-contour pixels the gradient is fixed (Dirichlet) with tilt
@@ -740,7 +771,12 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
             ``seeds="auto"`` uses singular points when present, else the boundary.  Oblique
             light: the same paper's transformation to ``u = S . X`` gives
             ``E^2 (S_z^2 + |grad u - S_xy|^2) = (1 - S_xy . grad u)^2``, marched here by an
-            ordered upwind (Dijkstra-like) scheme from the singular points.  ``E`` is floored at
+            ordered upwind (Dijkstra-like) scheme from the singular points.  Singular points are
+            critical points of ``u`` (maxima, but also saddles such as a vase's neck, each at its
+            own ``u``), so only the component at the global maximum is seeded: the one whose
+            single-seed march (on a <= 64 px subsampled grid) puts the lit occluding contour at
+            the most uniform depth (assumes a silhouette in one depth plane; lower maxima then
+            become ridges, a local error).  ``E`` is floored at
             ``e_min`` (shadows become grazing slopes); unreached pixels take their nearest
             reached value (reported in ``info["unreached"]`` with a warning).
     albedo : float, optional
@@ -751,10 +787,11 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
     pixel_size : float
         Pixel pitch in world units; the height is returned in these units.
     max_iter : int, optional
-        Iteration budget (defaults: horn1989 200 L-BFGS iterations per pyramid level,
+        Iteration budget (defaults: horn1989 100 sweeps on each grid finer than the coarsest,
         tsai_shah1994 500).
     tol : float, optional
-        Stop when the RMS energy gradient (horn1989) or the RMS height update in pixels
+        Stop when the RMS (p, q) update per sweep on the finest grid (horn1989) or the RMS height
+        update in pixels
         (tsai_shah1994) falls below it (default 1e-4 for both).
     boundary : "auto", "occluding", "free" or (H, W) bool
         Occluding-contour pixels for ``horn1989``.  ``"auto"``/``"occluding"``: the mask's edge
@@ -810,16 +847,18 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
     p = q = None
     z = None
     if method == "horn1989":
-        mi = _check_int(200 if max_iter is None else max_iter, "max_iter")
+        mi = _check_int(100 if max_iter is None else max_iter, "max_iter")
         tl = check_positive(1e-4 if tol is None else tol, "tol")
         init = None
-        p, q, converged, n_iter, info = _horn_pyramid(
-            E, s, m, levels=levels, max_iter=mi, tol=tl, lam=float(smoothness), lam_min=float(smoothness_min),
-            mu=float(integrability), boundary=bnd, theta_max=theta_max, n_stages=n_stages)
+        p, q, _, converged, n_iter, delta, total = _horn_pyramid(
+            E, s, m, levels=levels, coarse_iter=5 * mi, max_iter=mi, tol=tl, lam=float(smoothness),
+            lam_min=float(smoothness_min), mu=float(integrability), boundary=bnd, theta_max=theta_max,
+            n_stages=n_stages)
+        info = {"final_update": delta, "total_sweeps": total, "n_boundary": int((bnd & m).sum())}
         z = integrate_gradients(p, q, mask=m) * h
         if not converged:
-            warnings.warn(f"horn1989: stopped after {n_iter} iterations (max_iter={mi}) "
-                          f"with RMS energy gradient above tol={tl:g}; raise max_iter or tol",
+            warnings.warn(f"horn1989: stopped after {n_iter} sweeps on the finest grid (max_iter={mi}) "
+                          f"with RMS (p, q) update {delta:.3g} > tol={tl:g}; raise max_iter or tol",
                           RuntimeWarning, stacklevel=2)
     elif method == "tsai_shah1994":
         mi = _check_int(500 if max_iter is None else max_iter, "max_iter")
@@ -864,9 +903,11 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
             if mode == "boundary":
                 raise ValueError("seeds='boundary': fast_marching supports boundary seeds only for a "
                                  "light along the view; use seeds='singular' or 'auto'")
+            sing, n_comp = _global_max_seed(E, s, m, sing, e_min=float(e_min))
             zp, n_iter, _ = _fmm_oblique(E, s, m, e_min=float(e_min), seed_mask=sing)
+            info["singular_components"] = n_comp
         zp, unreached = _fill_unreached(zp, m)
-        info = {"seeds": mode, "n_seeds": int(sing.sum()) if mode == "singular" else int(occluding_boundary(m, exclude_border=False).sum()),
+        info = {**info, "seeds": mode, "n_seeds": int(sing.sum()) if mode == "singular" else int(occluding_boundary(m, exclude_border=False).sum()),
                 "unreached": unreached}
         if unreached:
             converged = False

@@ -105,7 +105,15 @@ class _Renderer:
         """Mean and per-pixel sd of the mean of two half-sample renders with independent seeds."""
         mi = self.mi
         half = max(1, self.spp // 2)
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw))
+        # samplers such as multijitter round the count up (with a warning): use what they take
+        level = mi.log_level()
+        mi.set_log_level(mi.LogLevel.Error)
+        try:
+            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw))
+        finally:
+            mi.set_log_level(level)
+        half = int(scene.sensors()[0].sampler().sample_count())
+        self.spp_used = 2 * half
         base = 2 * (self.seed * 1000 + seed_offset)
         a = np.array(mi.render(scene, seed=base, spp=half), dtype=np.float32)[..., :3]
         b = np.array(mi.render(scene, seed=base + 1, spp=half), dtype=np.float32)[..., :3]
@@ -216,7 +224,8 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         "reference": spec.reference,
         "quality": r.quality,
         "resolution": list(r.res),
-        "spp": r.spp,
+        "spp": getattr(r, "spp_used", r.spp),
+        "spp_nominal": r.spp,
         "seed": spec.render.seed,
         "max_depth": md,
         "variant": choice.variant if choice else None,
