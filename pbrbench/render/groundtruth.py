@@ -35,7 +35,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 1
+GT_FORMAT = 3  # bump when the content of a ground truth changes (invalidates caches)
 
 
 @dataclass
@@ -109,7 +109,7 @@ class _Renderer:
         level = mi.log_level()
         mi.set_log_level(mi.LogLevel.Error)
         try:
-            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw))
+            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw), optimize=False)
         finally:
             mi.set_log_level(level)
         half = int(scene.sensors()[0].sampler().sample_count())
@@ -128,13 +128,13 @@ class _Renderer:
         mi = self.mi
         integ = {"type": "aov", "aovs": "alb:albedo,nn:sh_normal,pp:position,si:shape_index",
                  "cov": {"type": "path", "max_depth": 1}}
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, self.spp, integrator=integ, drop_occluders=False))
+        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, self.spp, integrator=integ, drop_occluders=False), optimize=False)
         mi.render(scene, seed=self.seed)
         ch = _film_arrays(scene)
         M = np.array(scene.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)
+        obj_avg = self._object_ids(scene, ch["si.I"])  # footprint-averaged: mixed pixels -> -1
         del scene
         cov = ch["cov.A"]
-        si_avg = ch["si.I"]
         safe = np.where(cov > 0, cov, 1.0)
         alb = np.stack([ch["alb.R"], ch["alb.G"], ch["alb.B"]], -1) / safe[..., None]
         nw = np.stack([ch["nn.X"], ch["nn.Y"], ch["nn.Z"]], -1).astype(np.float64) / safe[..., None]
@@ -151,19 +151,9 @@ class _Renderer:
         depth[~covered] = 0
         # object ids from a one-sample pass (ids must not be averaged across an edge)
         integ1 = {"type": "aov", "aovs": "si:shape_index"}
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, 1, integrator=integ1, sampler="independent"))
+        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, 1, integrator=integ1, sampler="independent"), optimize=False)
         mi.render(scene, seed=self.seed, spp=1)
-        si = _film_arrays(scene)["si.I"]
-        if mi.variant().startswith("scalar"):
-            idmap = {i + 1: s.id() for i, s in enumerate(scene.shapes())}
-        else:
-            import drjit as dr
-
-            idmap = {int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]): s.id() for s in scene.shapes()}
-        keys = {shape_key(self.spec, i): i + 1 for i in range(len(self.spec.shapes))}
-        obj = np.zeros(si.shape, np.float32)
-        for raw, sid in idmap.items():
-            obj[np.rint(si) == raw] = keys.get(sid, 0)  # emitters (area lights) -> 0
+        obj = np.maximum(self._object_ids(scene, _film_arrays(scene)["si.I"]), 0)
         del scene
         gc.collect()
         # pure pixels: fully covered and not on a boundary between two objects (there the
@@ -173,12 +163,33 @@ class _Renderer:
         for di, dj in ((0, 1), (2, 1), (1, 0), (1, 2)):
             same &= pad[di:di + obj.shape[0], dj:dj + obj.shape[1]] == obj
         # and the footprint-averaged index equals the point-sampled one (no mixture inside the pixel)
-        pure = (cov > 0.999) & same & (obj > 0) & (si_avg == si)
+        pure = (cov > 0.999) & same & (obj > 0) & (obj_avg == obj)
         self._tick("aovs")
         return {"albedo": alb.astype(np.float32), "normals": n_cam.astype(np.float32),
                 "position": pos.astype(np.float32), "depth": depth.astype(np.float32),
                 "coverage": cov.astype(np.float32), "mask": pure.astype(np.float32),
                 "object_id": obj}
+
+    def _object_ids(self, scene, si: np.ndarray) -> np.ndarray:
+        """Map Mitsuba's ``shape_index`` AOV to 0 (background / emitters), k + 1 (shape k), or -1
+        where the value is no shape's index (an average across several shapes).
+
+        ``shape_index`` is the 1-based position in ``scene.shapes()`` in scalar variants and the
+        shape's JIT registry id in LLVM/CUDA ones (notes/mitsuba.md §2.1): map each scene with
+        its own table.
+        """
+        mi = self.mi
+        if mi.variant().startswith("scalar"):
+            idmap = {i + 1: s.id() for i, s in enumerate(scene.shapes())}
+        else:
+            import drjit as dr
+
+            idmap = {int(dr.reinterpret_array(mi.UInt32, mi.ShapePtr(s))[0]): s.id() for s in scene.shapes()}
+        keys = {shape_key(self.spec, i): i + 1 for i in range(len(self.spec.shapes))}
+        out = np.where(si == 0, 0, -1).astype(np.float32)
+        for raw, sid in idmap.items():
+            out[si == raw] = keys.get(sid, 0)  # emitters (area lights) -> 0
+        return out
 
     def n_passes(self) -> int:
         n = 3 + 2 * len(self.spec.light_set)
