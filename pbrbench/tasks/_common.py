@@ -1,0 +1,288 @@
+"""Helpers shared by the benchmark tasks: scene families, nominal lights, noise, display images.
+
+Everything here is a pure function of its arguments (no renderer): tasks resolve what they need
+from the scene specs when they *list* jobs (:meth:`Task.jobs`), store it in the job's ``params``,
+and :meth:`Task.run_job` then works from the job and the ground-truth arrays alone, so jobs can
+run in worker processes and tests can build jobs from synthetic ground truths.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import zlib
+
+import numpy as np
+
+from pbrbench.tasks.base import Job, Score
+
+# ------------------------------------------------------------------------------- scene lists
+
+
+def families_for(task, quality: str) -> tuple[str, ...]:
+    """The task's families at ``quality``: its ``draft_families`` at draft quality (a short,
+    representative subset that keeps the draft benchmark within its time budget), else all."""
+    if quality == "draft" and getattr(task, "draft_families", None):
+        return tuple(task.draft_families)
+    return tuple(task.families)
+
+
+def family_scenes(family: str) -> list:
+    """SceneSpecs of a library family (a file stem; its sweep expanded), [] if the file is absent.
+
+    Tasks list every family of the naming contract; families the library does not have (yet)
+    contribute no jobs instead of failing the whole task.
+    """
+    from pbrbench.scene.load import load_scene_file, scenes_dir
+
+    path = scenes_dir() / f"{family}.toml"
+    if not path.is_file():
+        return []
+    return load_scene_file(path)
+
+
+def sweep_value(spec, key: str):
+    """The value a swept spec took for ``key`` (the last part of a key path), parsed from its name
+    ``family[key=value,...]``; None when the spec is not swept on it."""
+    name = spec.name if not isinstance(spec, str) else spec
+    if "[" not in name or not name.endswith("]"):
+        return None
+    for part in name[name.index("[") + 1:-1].split(","):
+        k, _, v = part.partition("=")
+        if k == key:
+            try:
+                return float(v)
+            except ValueError:
+                return v
+    return None
+
+
+def subsample(values: list, keep: int) -> list:
+    """``keep`` items spread evenly over ``values`` (first and last included), order kept."""
+    n = len(values)
+    if keep >= n:
+        return list(values)
+    if keep <= 1:
+        return [values[n // 2]]
+    idx = sorted({round(i * (n - 1) / (keep - 1)) for i in range(keep)})
+    return [values[i] for i in idx]
+
+
+# ----------------------------------------------------------------------------- light vectors
+
+
+def camera_rotation(camera) -> np.ndarray:
+    """(3, 3) rotation whose rows are the camera axes (x right, y up, z toward the camera) in
+    world coordinates: ``R @ v`` expresses a world vector ``v`` in the camera frame."""
+    o = np.asarray(camera.origin, float)
+    t = np.asarray(camera.target, float)
+    up = np.asarray(camera.up, float)
+    z = o - t
+    z /= np.linalg.norm(z)
+    x = np.cross(up, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    return np.stack([x, y, z])
+
+
+def _mean(v) -> float:
+    return float(np.mean(np.asarray(v, float)))
+
+
+def nominal_light(light, camera) -> tuple[np.ndarray, float]:
+    """Nominal distant-source model of one light of a SceneSpec: ``(unit direction in the camera
+    frame, irradiance at the camera target)``.
+
+    * directional: its direction and (channel-mean) irradiance;
+    * area rectangle: direction ``normalize(center - target)``; irradiance of a small source,
+      ``L A cos(theta_s) / d^2`` (radiance, area, the emitter's tilt away from the target,
+      distance) -- the value a user would measure at the target;
+    * point: direction ``normalize(position - target)``, irradiance ``I / d^2``.
+    """
+    R = camera_rotation(camera)
+    target = np.asarray(camera.target, float)
+    kind = light.type
+    if kind == "directional":
+        d = np.asarray(light.direction, float)
+        e = _mean(light.irradiance)
+    elif kind == "area":
+        d = np.asarray(light.center, float) - target
+        dist = float(np.linalg.norm(d))
+        n = np.asarray(light.normal, float)
+        cos_s = max(0.0, float(np.dot(-d / dist, n / np.linalg.norm(n))))
+        e = _mean(light.radiance) * light.size[0] * light.size[1] * cos_s / dist ** 2
+    elif kind == "point":
+        d = np.asarray(light.position, float) - target
+        e = _mean(light.intensity) / float(np.dot(d, d))
+    else:
+        raise ValueError(f"light: a {kind!r} light has no direction; photometric models need "
+                         "directional, area or point lights")
+    d = R @ (d / np.linalg.norm(d))
+    return d, e
+
+
+def light_vectors(spec, which: str = "light_set") -> np.ndarray:
+    """(K, 3) source vectors (unit direction x irradiance) in the camera frame, from the spec's
+    ``light_set`` (default) or ``lights``."""
+    lights = getattr(spec, which)
+    if not lights:
+        raise ValueError(f"spec {spec.name!r} has no {which}")
+    return np.array([d * e for d, e in (nominal_light(li, spec.camera) for li in lights)])
+
+
+def as_param(a) -> tuple:
+    """A float array as a nested tuple of rounded floats (hashable, for :class:`Job` params)."""
+    a = np.asarray(a, float)
+    if a.ndim == 0:
+        return round(float(a), 9)
+    return tuple(as_param(x) for x in a)
+
+
+def pixel_size(half_width: float, width: int) -> float:
+    """World size of one pixel of an orthographic film ``[-half_width, half_width]`` wide."""
+    return 2.0 * float(half_width) / int(width)
+
+
+# ----------------------------------------------------------------------------- image helpers
+
+
+def grey(img) -> np.ndarray:
+    """Channel mean of an (..., 3) image (the grey level used by every task); 2-D passes through."""
+    a = np.asarray(img, np.float64)
+    return a.mean(axis=-1) if a.ndim >= 3 and a.shape[-1] in (3, 4) else a
+
+
+def parse_condition(condition: str) -> tuple[str, dict[str, float]]:
+    """``"local+noise0.01"`` -> ``("local", {"noise": 0.01})``; ``"local+3x3stops"`` ->
+    ``("local", {"3x3stops": 1.0})`` (a flag without a number)."""
+    base, *mods = condition.split("+")
+    out: dict[str, float] = {}
+    for m in mods:
+        i = 0
+        while i < len(m) and (m[i].isalpha() or m[i] == "_"):
+            i += 1
+        key, num = m[:i], m[i:]
+        try:
+            out[key or m] = float(num) if num and key else 1.0
+        except ValueError:
+            out[m] = 1.0
+    return base, out
+
+
+def job_rng(job: Job, seed: int) -> np.random.Generator:
+    """A generator determined by ``seed`` and the job's key (stable across processes)."""
+    return np.random.default_rng([int(seed), zlib.crc32(job.key.encode())])
+
+
+def add_noise(images, level: float, rng: np.random.Generator, *, peak: float | None = None) -> np.ndarray:
+    """Images plus Gaussian noise of standard deviation ``level`` x ``peak`` (default: the
+    stack's maximum), clipped at 0 -- a linear camera with read noise ``level`` of full scale."""
+    a = np.asarray(images, np.float64)
+    if level <= 0:
+        return a.copy()
+    peak = float(a.max()) if peak is None else float(peak)
+    return np.maximum(a + rng.normal(0.0, level * peak, a.shape), 0.0)
+
+
+def block_mean(a: np.ndarray, factor: int) -> np.ndarray:
+    """Average ``factor`` x ``factor`` blocks of an (H, W[, C]) array (edges cropped)."""
+    if factor <= 1:
+        return a
+    h, w = a.shape[0] // factor * factor, a.shape[1] // factor * factor
+    a = a[:h, :w]
+    shp = (h // factor, factor, w // factor, factor) + a.shape[2:]
+    return a.reshape(shp).mean(axis=(1, 3))
+
+
+def display(a, max_size: int = 128) -> np.ndarray:
+    """A small float32 copy of an image or map for the report (block-averaged to <= max_size)."""
+    a = np.nan_to_num(np.asarray(a, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+    factor = max(1, math.ceil(max(a.shape[:2]) / max_size))
+    return block_mean(a, factor).astype(np.float32)
+
+
+def display_map(a, mask=None, max_size: int = 128) -> np.ndarray:
+    """Like :func:`display` for an error map: NaN outside ``mask`` is kept NaN (blank in the
+    report) by averaging the valid values only."""
+    a = np.asarray(a, np.float64)
+    m = np.isfinite(a) if mask is None else (np.asarray(mask, bool) & np.isfinite(a))
+    factor = max(1, math.ceil(max(a.shape[:2]) / max_size))
+    num = block_mean(np.where(m, a, 0.0), factor)
+    den = block_mean(m.astype(float), factor)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan).astype(np.float32)
+
+
+def normals_display(n, mask=None, max_size: int = 128) -> np.ndarray:
+    """Normals as display RGB ``(n + 1) / 2`` in [0, 1]; black outside ``mask``."""
+    rgb = np.clip((np.asarray(n, np.float64) + 1.0) / 2.0, 0.0, 1.0)
+    if mask is not None:
+        rgb = np.where(np.asarray(mask, bool)[..., None], rgb, 0.0)
+    return display(rgb, max_size)
+
+
+def profile_plot(x, series: dict, xlabel: str, ylabel: str, **extra) -> dict:
+    """Plot data in the :class:`JobResult` format, as plain lists of floats (NaN -> None)."""
+
+    def clean(v):
+        return [None if not np.isfinite(f) else float(f) for f in np.asarray(v, float).ravel()]
+
+    out = {"x": clean(x), "series": {k: clean(v) for k, v in series.items()},
+           "xlabel": xlabel, "ylabel": ylabel}
+    out.update(extra)
+    return out
+
+
+# ----------------------------------------------------------------------------------- scoring
+
+
+class ScoreBook:
+    """Collects :class:`Score` records for one job (scene hash and condition filled in).
+
+    ``scene_label`` replaces the job's scene name in the scores when one ground truth holds
+    several cases (e.g. ``sfs_sphere:oblique`` for light 1 of the light set of ``sfs_sphere``).
+    """
+
+    def __init__(self, job: Job, scene_hash: str, versions: dict[str, str] | None = None,
+                 scene_label: str | None = None):
+        self.job = job
+        self.scene_label = scene_label or job.scene
+        self.scene_hash = scene_hash
+        self.versions = versions or {}
+        self.scores: list[Score] = []
+
+    def add(self, algorithm: str, metric: str, value, seconds: float, better: str = "lower") -> None:
+        self.scores.append(Score(task=self.job.task, scene=self.scene_label, scene_hash=self.scene_hash,
+                                 condition=self.job.condition, algorithm=algorithm,
+                                 algorithm_version=self.versions.get(algorithm, "1"), metric=metric,
+                                 value=float(value), seconds=float(seconds), better=better))
+
+    def add_all(self, algorithm: str, values: dict, seconds: float, directions: dict[str, str]) -> None:
+        for k, v in values.items():
+            self.add(algorithm, k, v, seconds, directions.get(k, "lower"))
+
+
+class Timer:
+    """``with Timer() as t: ...; t.seconds`` (wall clock)."""
+
+    def __enter__(self):
+        self.t0 = time.perf_counter()
+        self.seconds = 0.0
+        return self
+
+    def __exit__(self, *exc):
+        self.seconds = time.perf_counter() - self.t0
+        return False
+
+
+def scene_hash(gt) -> str:
+    return str(getattr(gt, "meta", {}).get("scene_hash", ""))
+
+
+def erode(mask, iterations: int = 1) -> np.ndarray:
+    from scipy import ndimage
+
+    m = np.asarray(mask, bool)
+    if iterations <= 0:
+        return m.copy()
+    return ndimage.binary_erosion(m, iterations=iterations, border_value=0)
