@@ -183,7 +183,7 @@ def _fmt_value(v) -> str:
     if isinstance(v, float):
         return f"{v:g}"
     if isinstance(v, list):
-        return "/".join(_fmt_value(x) for x in v)
+        return "_".join(_fmt_value(x) for x in v)  # "/" is a path separator and not allowed in names
     return str(v)
 
 

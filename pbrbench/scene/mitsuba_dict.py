@@ -8,8 +8,8 @@ scratch directory) with the surface's exact normals as vertex normals.
 
 from __future__ import annotations
 
+import hashlib
 import os
-import struct
 import tempfile
 
 import numpy as np
@@ -153,11 +153,11 @@ def shape_dict(mi, spec: S.SceneSpec, i: int, shape, *, diffuse_only: bool = Fal
     elif isinstance(shape, S.Cylinder):
         d.update(type="cylinder", p0=list(shape.p0), p1=list(shape.p1), radius=shape.radius)
     elif isinstance(shape, S.Heightfield):
-        verts, nrm, uvs, faces = heightfield_mesh(shape, spec.base_dir)
-        key = abs(hash((spec.content_hash(), i)))
+        key = hashlib.sha256(shape.model_dump_json().encode() + spec.content_hash().encode()).hexdigest()[:24]
         path = os.path.join(_scratch_dir(), f"hf_{key}.ply")
-        if not os.path.exists(path):
-            write_ply(path, verts, nrm, uvs, faces)
+        if not os.path.exists(path):  # built once per process, reused by every pass
+            write_ply(path + ".tmp", *heightfield_mesh(shape, spec.base_dir))
+            os.replace(path + ".tmp", path)
         d.update(type="ply", filename=path, face_normals=False)
         if shape.rotate:
             d["to_world"] = rot
