@@ -24,7 +24,11 @@ from pbrbench.infer.hdr import (
     calibrate_robertson,
     merge_hdr,
 )
-from pbrbench.infer.integration import integrability_residual, integrate_normals, normals_to_gradients
+from pbrbench.infer.integration import (
+    integrability_residual,
+    integrate_normals,
+    normals_to_gradients,
+)
 from pbrbench.infer.lightness import retinex, retinex_1d
 from pbrbench.infer.photometric_stereo import PhotometricStereoResult, photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field

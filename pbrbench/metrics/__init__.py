@@ -11,7 +11,14 @@ from pbrbench.metrics.hdr import (
     log_radiance_rmse_extremes,
     response_rmse,
 )
-from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, lmse, lmse_map, ratio_errors, si_mse
+from pbrbench.metrics.lightness import (
+    albedo_abs_error,
+    intrinsic_lmse,
+    lmse,
+    lmse_map,
+    ratio_errors,
+    si_mse,
+)
 from pbrbench.metrics.normals import (
     albedo_relative_error,
     angular_error_map,

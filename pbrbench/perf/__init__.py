@@ -1,0 +1,25 @@
+"""Speed and accuracy benchmarks of the inference kernels and the renderer (``pbrbench perf``).
+
+Each module ``pbrbench.perf.<area>`` exposes ``run(quick=False) -> list[dict]`` with rows
+``{"benchmark", "case", "method", "metric", "value", "unit"}`` and a ``main()`` that prints them.
+"""
+
+from __future__ import annotations
+
+import sys
+
+
+def print_rows(rows: list[dict]) -> None:
+    """Print perf rows as an aligned table: case, method, metric, value and unit."""
+    if not rows:
+        print("(no rows)")
+        return
+    w = [max(len(str(r[k])) for r in rows) for k in ("case", "method", "metric")]
+    for r in rows:
+        print(f"{r['case']:<{w[0]}}  {r['method']:<{w[1]}}  {r['metric']:<{w[2]}}  {r['value']:.4g} {r['unit']}")
+
+
+def main_for(run, argv=None) -> None:
+    """``python -m pbrbench.perf.<area> [--quick]``: run and print."""
+    argv = sys.argv[1:] if argv is None else argv
+    print_rows(run(quick="--quick" in argv))

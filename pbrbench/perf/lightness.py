@@ -17,7 +17,6 @@ Cases
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -26,6 +25,7 @@ from pbrbench.infer.lightness import retinex
 from pbrbench.infer.specular import detect_specularities, remove_specularities
 from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, ratio_errors, si_mse
 from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
+from pbrbench.perf import main_for
 from pbrbench.shading.mondrian import mondrian_albedo, mondrian_scene, point_source_shading
 from pbrbench.shading.surfaces import on_grid
 
@@ -153,12 +153,7 @@ def run(quick: bool = False) -> list[dict]:
 
 
 def main(argv=None) -> None:
-    argv = sys.argv[1:] if argv is None else argv
-    rows = run(quick="--quick" in argv)
-    w = [max(len(str(r[k])) for r in rows) for k in ("case", "method", "metric")]
-    for r in rows:
-        print(f"{r['case']:<{w[0]}}  {r['method']:<{w[1]}}  {r['metric']:<{w[2]}}  "
-              f"{r['value']:.4g} {r['unit']}")
+    main_for(run, argv)
 
 
 if __name__ == "__main__":

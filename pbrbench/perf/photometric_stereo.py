@@ -21,7 +21,6 @@ Cases
 
 from __future__ import annotations
 
-import sys
 import time
 
 import numpy as np
@@ -30,6 +29,7 @@ from pbrbench.infer.integration import integrate_normals
 from pbrbench.infer.photometric_stereo import photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field
 from pbrbench.metrics.normals import angular_error_stats, height_rmse
+from pbrbench.perf import main_for
 from pbrbench.shading.lambert import lambertian_images
 from pbrbench.shading.surfaces import on_grid, pixel_grid
 
@@ -185,12 +185,7 @@ def run(quick: bool = False) -> list[dict]:
 
 
 def main(argv=None) -> None:
-    argv = sys.argv[1:] if argv is None else argv
-    rows = run(quick="--quick" in argv)
-    w = [max(len(str(r[k])) for r in rows) for k in ("case", "method", "metric")]
-    for r in rows:
-        print(f"{r['case']:<{w[0]}}  {r['method']:<{w[1]}}  {r['metric']:<{w[2]}}  "
-              f"{r['value']:.4g} {r['unit']}")
+    main_for(run, argv)
 
 
 if __name__ == "__main__":

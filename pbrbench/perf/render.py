@@ -59,9 +59,10 @@ def run(quick: bool = False) -> list[dict]:
     return out
 
 
-def main() -> None:
-    for r in run():
-        print(f"{r['case']:32s} {r['method']:12s} {r['metric']:14s} {r['value']:10.4f} {r['unit']}")
+def main(argv=None) -> None:
+    from pbrbench.perf import main_for
+
+    main_for(run, argv)
 
 
 if __name__ == "__main__":

@@ -66,12 +66,10 @@ def _rotations(mi, rot) -> object:
 
 def _frame(mi, center, normal, up, scale):
     T = mi.ScalarTransform4f
+    from pbrbench.shading.irradiance import rectangle_basis
+
     c = np.asarray(center, float)
-    n = np.asarray(normal, float)
-    n = n / np.linalg.norm(n)
-    u = np.asarray(up, float)
-    if abs(np.dot(u / np.linalg.norm(u), n)) > 0.999:
-        u = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    _, u, n = rectangle_basis(normal, up)
     return T().look_at(origin=c.tolist(), target=(c + n).tolist(), up=u.tolist()) @ T().scale(list(scale))
 
 

@@ -75,6 +75,23 @@ def polygon_normal(polygon) -> np.ndarray:
     return n / ln
 
 
+def rectangle_basis(normal, up=(0.0, 1.0, 0.0)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orthonormal ``(left, up, normal)`` of Mitsuba's ``look_at`` frame for a rectangle facing ``normal``.
+
+    ``left = normalize(up x normal)``, ``up' = normal x left``; an ``up`` (nearly) parallel to
+    ``normal`` is replaced by a fixed axis.  The scene builder uses the same basis, so the closed
+    forms and the renders describe the same rectangle.
+    """
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    u = np.asarray(up, float)
+    if abs(np.dot(u / np.linalg.norm(u), n)) > 0.999:
+        u = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    left = np.cross(u, n)
+    left /= np.linalg.norm(left)
+    return left, np.cross(n, left), n
+
+
 def rectangle_polygon(center, size, normal=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0)) -> np.ndarray:
     """The four corners (4, 3) of a rectangle as the scene files define area lights and rectangles.
 
@@ -84,15 +101,7 @@ def rectangle_polygon(center, size, normal=(0.0, 0.0, -1.0), up=(0.0, 1.0, 0.0))
     points to.
     """
     c = np.asarray(center, float)
-    n = np.asarray(normal, float)
-    n = n / np.linalg.norm(n)
-    u = np.asarray(up, float)
-    if abs(np.dot(u / np.linalg.norm(u), n)) > 0.999:
-        u = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-    # Mitsuba look_at: dir = n, left = normalize(cross(up, dir)), new_up = cross(dir, left)
-    left = np.cross(u, n)
-    left /= np.linalg.norm(left)
-    new_up = np.cross(n, left)
+    left, new_up, n = rectangle_basis(normal, up)
     hx, hy = 0.5 * size[0], 0.5 * size[1]
     corners = [(-1, -1), (1, -1), (1, 1), (-1, 1)]
     v = np.array([c + sx * hx * left + sy * hy * new_up for sx, sy in corners])
