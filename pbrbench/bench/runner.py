@@ -67,11 +67,9 @@ class RunConfig:
     progress: bool | None = None     # None: bars when stderr is a terminal (or PBRBENCH_PROGRESS=1)
 
     def store_path(self) -> Path:
-        if self.store:
-            return Path(self.store)
-        if os.environ.get("PBRBENCH_STORE"):
-            return Path(os.environ["PBRBENCH_STORE"])
-        return Path(self.out) / "history.sqlite"
+        from pbrbench.bench.store import resolve_store_path
+
+        return resolve_store_path(self.store, self.out)
 
     def recorded(self) -> dict:
         return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,

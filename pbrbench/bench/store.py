@@ -33,6 +33,16 @@ from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
+
+def resolve_store_path(store: str | None, out: str | os.PathLike = "reports") -> Path:
+    """The results database: ``store`` if given, else ``PBRBENCH_STORE``, else ``<out>/history.sqlite``."""
+    if store:
+        return Path(store)
+    if os.environ.get("PBRBENCH_STORE"):
+        return Path(os.environ["PBRBENCH_STORE"])
+    return Path(out) / "history.sqlite"
+
+
 DEFAULT_PATH = Path("reports") / "history.sqlite"
 BUSY_TIMEOUT_MS = 60_000
 

@@ -14,13 +14,9 @@ def register(sub):
 
 
 def store_path(args) -> Path:
-    import os
+    from pbrbench.bench.store import resolve_store_path
 
-    if args.store:
-        return Path(args.store)
-    if os.environ.get("PBRBENCH_STORE"):
-        return Path(os.environ["PBRBENCH_STORE"])
-    return Path(args.out) / "history.sqlite"
+    return resolve_store_path(args.store, args.out)
 
 
 def open_store(args):
