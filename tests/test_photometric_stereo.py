@@ -4,19 +4,12 @@ import numpy as np
 import pytest
 
 from pbrbench.infer.photometric_stereo import PhotometricStereoResult, photometric_stereo
-from pbrbench.shading.lambert import lambertian_images
+from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
 from pbrbench.shading.surfaces import on_grid
 
 # The chapter's five sources (Fig 1.13): one along the view, four oblique ones.
 CHAPTER_LIGHTS = np.array([[0, 0, 1], [1, 0, 1.5], [-1, 0, 1.5], [0, 1, 1.5], [0, -1, 1.5]], float)
 CHAPTER_LIGHTS /= np.linalg.norm(CHAPTER_LIGHTS, axis=1, keepdims=True)
-
-
-def _ring(k=12, elevations=(35, 55)):
-    i = np.arange(k)
-    az = 2 * np.pi * i / k
-    el = np.radians(np.where(i % 2 == 0, elevations[0], elevations[1]))
-    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
 
 
 def _ang(a, b):
@@ -66,7 +59,7 @@ def test_eight_bit_quantised_sphere(sphere):
 
 def test_pixels_lit_by_fewer_than_three_lights_are_invalid_not_wrong():
     s = on_grid("sphere", 96, half_width=1.05)
-    lights = _ring(4, elevations=(30, 30))  # four grazing sources: the rim sees only two
+    lights = ring_lights(4, elevations=(30, 30))  # four grazing sources: the rim sees only two
     lit = (s.normals @ lights.T > 0).sum(-1)
     assert (s.mask & (lit < 3)).any()
     r = photometric_stereo(lambertian_images(s.normals, 1.0, lights, mask=s.mask), lights, mask=s.mask)
@@ -93,7 +86,7 @@ def test_frame_convention_on_tilted_plane():
 
 def test_colour_shared_normal_per_channel_albedo_and_coloured_sources():
     s = on_grid("bumps", 64, 1.0)
-    lights = _ring(8)
+    lights = ring_lights(8)
     rng = np.random.default_rng(4)
     albedo = np.stack([np.full((64, 64), a) for a in (0.2, 0.5, 0.9)], axis=-1)
     albedo *= rng.uniform(0.8, 1.2, size=(64, 64, 1))
@@ -112,7 +105,7 @@ def test_colour_shared_normal_per_channel_albedo_and_coloured_sources():
 
 def test_scalar_intensities_equal_light_lengths():
     s = on_grid("random_smooth", 48, 1.0)
-    lights = _ring(6)
+    lights = ring_lights(6)
     e = np.array([1.0, 2.0, 0.5, 1.5, 3.0, 0.8])
     imgs = lambertian_images(s.normals, 0.6, lights * e[:, None])
     a = photometric_stereo(imgs, lights, intensities=e)
@@ -123,7 +116,7 @@ def test_scalar_intensities_equal_light_lengths():
 
 def test_saturated_measurements_are_excluded():
     s = on_grid("sphere", 64, half_width=1.05)
-    lights = _ring(12)
+    lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 1.0, lights, mask=s.mask)
     clipped = np.minimum(imgs, 0.8)
     bad = photometric_stereo(clipped, lights, mask=s.mask)
@@ -136,13 +129,9 @@ def test_saturated_measurements_are_excluded():
 
 def _specular_sphere(n_px=64, shininess=300.0):
     s = on_grid("sphere", n_px, half_width=1.05)
-    lights = _ring(12)
+    lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 0.8, lights, mask=s.mask)
-    half = lights + np.array([0.0, 0.0, 1.0])
-    half /= np.linalg.norm(half, axis=1, keepdims=True)
-    lit = np.einsum("hwc,kc->khw", s.normals, lights) > 0
-    spec = np.maximum(np.einsum("hwc,kc->khw", s.normals, half), 0) ** shininess * lit
-    spec[:, ~s.mask] = 0
+    spec = blinn_phong_highlights(s.normals, lights, shininess, mask=s.mask)
     return s, lights, imgs + spec, (spec > 1e-3).any(0) & s.mask
 
 
@@ -162,7 +151,7 @@ def test_robust_l1_removes_highlights_where_least_squares_fails():
 
 def test_robust_method_is_exact_on_clean_data():
     s = on_grid("sphere", 48, half_width=1.05)
-    lights = _ring(12)
+    lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 0.5, lights, mask=s.mask)
     r = photometric_stereo(imgs, lights, mask=s.mask, method="ikehata2012_l1")
     assert _ang(r.normals, s.normals)[r.valid].max() < 1e-5
@@ -171,7 +160,7 @@ def test_robust_method_is_exact_on_clean_data():
 
 def test_noise_gives_growing_error_and_residual():
     s = on_grid("sphere", 64, half_width=1.05)
-    lights = _ring(12)
+    lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 0.8, lights, mask=s.mask)
     rng = np.random.default_rng(0)
     errs, res = [], []
@@ -185,7 +174,7 @@ def test_noise_gives_growing_error_and_residual():
 
 def test_mask_and_nan_outside_mask():
     s = on_grid("sphere", 32, half_width=1.05)
-    lights = _ring(6)
+    lights = ring_lights(6)
     imgs = lambertian_images(s.normals, 1.0, lights, mask=s.mask)
     imgs[:, ~s.mask] = np.nan
     r = photometric_stereo(imgs, lights, mask=s.mask)

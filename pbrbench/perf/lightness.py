@@ -26,6 +26,7 @@ from pbrbench.infer.specular import detect_specularities, remove_specularities
 from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, ratio_errors, si_mse
 from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
 from pbrbench.perf import main_for
+from pbrbench.shading.lambert import blinn_phong_highlights
 from pbrbench.shading.mondrian import mondrian_albedo, mondrian_scene, point_source_shading
 from pbrbench.shading.surfaces import on_grid
 
@@ -45,13 +46,10 @@ def glossy_sphere(size: int = 256, *, light=(0.4, 0.5, 0.77), shininess: float =
     n = s.normals
     lv = np.asarray(light, float)
     lv = lv / np.linalg.norm(lv)
-    hv = lv + np.array([0.0, 0.0, 1.0])
-    hv = hv / np.linalg.norm(hv)
     nl = np.maximum(n @ lv, 0.0)
-    nh = np.maximum(n @ hv, 0.0)
     m = s.mask[..., None]
     diffuse = (nl[..., None] + ambient) * np.asarray(albedo, float) * m
-    spec = (specular * nh ** shininess * (nl > 0))[..., None] * np.ones(3) * m
+    spec = specular * blinn_phong_highlights(n, lv, shininess, mask=s.mask)[0][..., None] * np.ones(3)
     return diffuse + spec, diffuse, s.mask
 
 

@@ -30,21 +30,13 @@ from pbrbench.infer.photometric_stereo import photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field
 from pbrbench.metrics.normals import angular_error_stats, height_rmse
 from pbrbench.perf import main_for
-from pbrbench.shading.lambert import lambertian_images
+from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
 from pbrbench.shading.surfaces import on_grid, pixel_grid
 
 __all__ = ["CHAPTER_LIGHTS", "ring_lights", "notched_mask", "run", "main"]
 
 CHAPTER_LIGHTS = np.array([[0, 0, 1], [1, 0, 1.5], [-1, 0, 1.5], [0, 1, 1.5], [0, -1, 1.5]], float)
 CHAPTER_LIGHTS /= np.linalg.norm(CHAPTER_LIGHTS, axis=1, keepdims=True)
-
-
-def ring_lights(k: int = 12, elevations=(35.0, 55.0)) -> np.ndarray:
-    """``k`` unit light directions on a ring around the view axis, alternating two elevations (deg)."""
-    i = np.arange(k)
-    az = 2 * np.pi * i / k
-    el = np.radians(np.where(i % 2 == 0, elevations[0], elevations[1]))
-    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
 
 
 def notched_mask(size: int, half_width: float = 1.0) -> np.ndarray:
@@ -157,11 +149,7 @@ def _highlight_rows(size, shininess=300.0):
     s = on_grid("sphere", size, half_width=1.05)
     lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 0.8, lights, mask=s.mask)
-    half = lights + np.array([0.0, 0.0, 1.0])
-    half /= np.linalg.norm(half, axis=1, keepdims=True)
-    lit = np.einsum("hwc,kc->khw", s.normals, lights) > 0
-    spec = np.maximum(np.einsum("hwc,kc->khw", s.normals, half), 0) ** shininess * lit
-    spec[:, ~s.mask] = 0
+    spec = blinn_phong_highlights(s.normals, lights, shininess, mask=s.mask)
     hl = (spec > 1e-3).any(0) & s.mask
     rows = []
     case = f"glossy sphere {size}x{size}, K=12, Blinn-Phong n={shininess:g}, highlight pixels"

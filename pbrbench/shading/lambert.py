@@ -43,3 +43,29 @@ def lambertian_images(normals, albedo, lights, *, intensities=None, mask=None, r
     if mask is not None:
         img[:, ~np.asarray(mask, bool)] = 0.0
     return img
+
+
+def ring_lights(k: int = 12, elevations=(35.0, 55.0)) -> np.ndarray:
+    """``k`` unit light directions on a ring around the view axis, alternating two elevations (deg)."""
+    i = np.arange(k)
+    az = 2 * np.pi * i / k
+    el = np.radians(np.where(i % 2 == 0, elevations[0], elevations[1]))
+    return np.stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)], axis=1)
+
+
+def blinn_phong_highlights(normals, lights, shininess: float, *, mask=None) -> np.ndarray:
+    """White specular lobes ``max(0, N . H_k)^n [N . S_k > 0]`` (Blinn, SIGGRAPH 1977), (K, H, W).
+
+    ``H_k`` is the unit half-vector of the source direction ``S_k`` and the orthographic view
+    ``V = (0, 0, 1)``; only the directions of ``lights`` matter.  Pixels outside ``mask`` are 0.
+    """
+    n = np.asarray(normals, float)
+    s = np.atleast_2d(np.asarray(lights, float))
+    s = s / np.linalg.norm(s, axis=1, keepdims=True)
+    half = s + np.array([0.0, 0.0, 1.0])
+    half /= np.linalg.norm(half, axis=1, keepdims=True)
+    lit = np.einsum("hwc,kc->khw", n, s) > 0
+    spec = np.maximum(np.einsum("hwc,kc->khw", n, half), 0.0) ** shininess * lit
+    if mask is not None:
+        spec[:, ~np.asarray(mask, bool)] = 0.0
+    return spec
