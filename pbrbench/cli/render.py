@@ -32,7 +32,7 @@ def _safe(name: str) -> str:
 def run(args) -> int:
     apply_env(args)
     from pbrbench.render.cache import RenderCache, ground_truth
-    from pbrbench.render.groundtruth import _Renderer  # noqa: F401 - imports mitsuba lazily later
+    from pbrbench.render.groundtruth import n_passes
     from pbrbench.render.previews import write_previews
     from pbrbench.scene.load import load_library, resolve
 
@@ -46,8 +46,7 @@ def run(args) -> int:
     t_all = time.perf_counter()
     rows = []
     for spec in specs:
-        n_passes = 3 + 2 * len(spec.light_set) + int(spec.has_occluders) + int(spec.has_glossy)
-        prog = RenderProgress(n_passes, spec.name)
+        prog = RenderProgress(n_passes(spec), spec.name)
         t0 = time.perf_counter()
         gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force, progress=prog)
         prog.close()

@@ -191,10 +191,11 @@ class _Renderer:
             out[si == raw] = keys.get(sid, 0)  # emitters (area lights) -> 0
         return out
 
-    def n_passes(self) -> int:
-        n = 3 + 2 * len(self.spec.light_set)
-        n += int(self.spec.has_occluders) + int(self.spec.has_glossy)
-        return n
+
+def n_passes(spec: S.SceneSpec) -> int:
+    """Progress steps of :func:`render_ground_truth`: radiance, direct, two per light of the light
+    set, the unoccluded and diffuse-only passes where they apply, and the AOVs."""
+    return 3 + 2 * len(spec.light_set) + int(spec.has_occluders) + int(spec.has_glossy)
 
 
 def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant: str | None = None,
