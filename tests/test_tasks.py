@@ -390,12 +390,25 @@ def test_sfs_a_refused_input_is_scored_as_a_failure():
     from pbrbench.tasks.sfs import TASK
 
     gt, job = sfs_gt()
-    # a nominal irradiance 30 % too high: the normalised image never reaches 1, so the oblique
-    # fast-marching method has no singular point to start from and refuses the input
+    # a nominal light behind the surface (z < 0): every method refuses it (ValueError) and is
+    # scored failed = 1 with no other score; the two references are still scored
+    params = tuple((k, (0.7, 0.0, -0.1) if k == "light" else v) for k, v in job.params)
+    sc = scores_of(TASK.run_job(Job(job.task, job.scene, "local+noise0", params), {"sfs_sphere": gt}))
+    for m in ("horn1989", "tsai_shah1994", "pentland1990", "fast_marching"):
+        assert sc[(m, "failed")] == 1.0 and (m, "height_rmse") not in sc
+    assert ("baseline:flat", "normal_mean_deg") in sc and ("floor:integrate_true_normals", "height_rmse") in sc
+
+
+def test_sfs_fast_marching_without_singular_point_is_scored():
+    from pbrbench.tasks.sfs import TASK
+
+    gt, job = sfs_gt()
+    # a nominal irradiance 30 % too high: the normalised image never reaches 1; fast marching
+    # seeds the brightest pixels (it used to refuse the input) and beats the flat surface
     params = tuple((k, np.pi * 1.3 if k == "irradiance" else v) for k, v in job.params)
     sc = scores_of(TASK.run_job(Job(job.task, job.scene, "local+noise0", params), {"sfs_sphere": gt}))
-    assert sc[("fast_marching", "failed")] == 1.0 and ("fast_marching", "height_rmse") not in sc
-    assert sc[("horn1989", "failed")] == 0.0
+    assert sc[("fast_marching", "failed")] == 0.0
+    assert sc[("fast_marching", "normal_mean_deg")] < sc[("baseline:flat", "normal_mean_deg")]
 
 
 # ------------------------------------------------------------------------------------------ hdr

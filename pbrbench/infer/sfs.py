@@ -489,7 +489,8 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
     only the diagonal: a Jacobi iteration whose spectral radius is ~1, so it oscillates).  Each
     step is damped: the diagonal is pushed away from zero by ``mu`` (0, then larger on failure,
     and at least ``damping`` in magnitude) and the step length halved until the brightness
-    residual ``sum f^2`` decreases (backtracking line search).  Shadow pixels (``E = 0``)
+    residual ``sum f^2`` decreases (backtracking line search from a step no pixel of which moves
+    more than the image size).  Shadow pixels (``E = 0``)
     contribute ``-max(R, 0)``.  Returns ``z, converged, steps, info``; ``info["stalled"]`` is
     True when no damped step lowered the residual (a stationary point of the damped
     linearisation, not a solution).
@@ -499,6 +500,7 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
 
     H, W = E.shape
     n = H * W
+    max_step = float(max(H, W))
     ef = E[::-1].ravel()
     mf = m[::-1].ravel()
     shadow = ef <= 0.0
@@ -547,7 +549,10 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
             d = np.where(mf, spsolve_triangular(J, -f, lower=True), 0.0)
             if not np.all(np.isfinite(d)):
                 continue
-            a = 1.0
+            # trust region: no pixel moves by more than the image's size in one step (a near-zero
+            # diagonal otherwise gives steps of 1e4 px that still lower the residual)
+            dmax = float(np.abs(d).max())
+            a = min(1.0, max_step / dmax) if dmax > 0 else 1.0
             for _ in range(n_halvings):
                 zn = z + a * d
                 fn, rpn, rqn = residual(zn)
@@ -839,8 +844,9 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
             triangular system: it oscillates and never converges); here the linearised system
             is solved for all pixels at once, which in causal order (from the lower left) is one
             forward substitution: a Newton step.  It is damped (the diagonal ``-(R_p + R_q)``
-            pushed away from 0, at least ``damping``) and its length halved until the brightness
-            residual ``sum f^2`` decreases.  The image is mirrored so that the light comes from
+            pushed away from 0, at least ``damping``), no pixel may move more than the image size
+            in one step, and the length is halved until the brightness residual ``sum f^2``
+            decreases.  The image is mirrored so that the light comes from
             the lower left (the causal direction of the differences) and mirrored back.  From the
             flat start the first step is the linear (Pentland-like) solution; the iteration
             usually stalls after a few steps at a point where no damped step lowers the
