@@ -5,7 +5,13 @@ import warnings
 import numpy as np
 import pytest
 
-from pbrbench.infer.sfs import METHODS, SFSResult, light_from_shading, occluding_boundary, shape_from_shading
+from pbrbench.infer.sfs import (
+    METHODS,
+    SFSResult,
+    light_from_shading,
+    occluding_boundary,
+    shape_from_shading,
+)
 from pbrbench.metrics.sfs import normal_angle
 from pbrbench.shading.lambert import lambertian_images
 from pbrbench.shading.surfaces import on_grid

@@ -243,20 +243,29 @@ def _outward_directions(mask, sigma: float = 1.5):
     return dx / nrm, dy / nrm
 
 
-def _contour_pq(E, s, mask, boundary, theta_max):
-    """Gradients at occluding-contour pixels: tilt from the silhouette, slant from brightness.
+def _contour_slants(E, s, mask):
+    """Outward silhouette normals ``dx, dy`` and the two candidate contour slants per pixel.
 
     At a contour pixel the normal is ``(sin t d, cos t)`` with ``d`` the outward silhouette
-    normal; ``E = sin t (d . S_xy) + cos t S_z`` fixes ``t``; of its two roots the one nearest
-    90 degrees (and at most ``theta_max``) is kept.
+    normal, so ``E = sin t (d . S_xy) + cos t S_z``; its roots are ``t = phi +- alpha`` with
+    ``phi = atan2(d . S_xy, S_z)`` and ``alpha = acos(E / |(d . S_xy, S_z)|)``.  Returns
+    ``dx, dy, cands`` with ``cands`` of shape (2, H, W).
     """
     dx, dy = _outward_directions(mask)
     a = dx * s[0] + dy * s[1]
-    b = s[2]
-    c = np.hypot(a, b)
-    phi = np.arctan2(a, b)
+    c = np.hypot(a, s[2])
+    phi = np.arctan2(a, s[2])
     alpha = np.arccos(np.clip(E / np.maximum(c, 1e-12), -1.0, 1.0))
-    cands = np.stack([phi + alpha, phi - alpha])
+    return dx, dy, np.stack([phi + alpha, phi - alpha])
+
+
+def _contour_pq(E, s, mask, boundary, theta_max):
+    """Gradients at occluding-contour pixels: tilt from the silhouette, slant from brightness.
+
+    Of the two roots of :func:`_contour_slants` the one nearest 90 degrees (and at most
+    ``theta_max``) is kept.
+    """
+    dx, dy, cands = _contour_slants(E, s, mask)
     ok = (cands >= 0) & (cands <= theta_max)
     dist = np.where(ok, np.abs(cands - np.pi / 2), np.inf)
     pick = np.take_along_axis(cands, np.argmin(dist, axis=0)[None], 0)[0]
@@ -268,7 +277,7 @@ def _contour_pq(E, s, mask, boundary, theta_max):
     return p, q
 
 
-def _contour_consistent(E, s, mask, boundary, theta_min_deg: float = 60.0, theta_max=math.radians(88.0)):
+def _contour_consistent(E, s, mask, boundary, *, theta_max, theta_min_deg: float = 60.0):
     """The pixels of ``boundary`` whose brightness an occluding contour could produce.
 
     At a contour pixel with outward silhouette normal ``d`` the normal is ``(sin t d, cos t)``
@@ -276,15 +285,8 @@ def _contour_consistent(E, s, mask, boundary, theta_min_deg: float = 60.0, theta
     ``[theta_min_deg, theta_max]``; dark pixels (``E < 0.02``, attached shadow) are kept.  A mask
     edge that is a cut through a surface (a frame, a vase's end) usually fails this.
     """
-    dx, dy = _outward_directions(mask)
-    a = dx * s[0] + dy * s[1]
-    c = np.hypot(a, s[2])
-    phi = np.arctan2(a, s[2])
-    alpha = np.arccos(np.clip(E / np.maximum(c, 1e-12), -1.0, 1.0))
-    tmin = math.radians(theta_min_deg)
-    ok = np.zeros(E.shape, bool)
-    for t in (phi + alpha, phi - alpha):
-        ok |= (t >= tmin) & (t <= theta_max)
+    _, _, cands = _contour_slants(E, s, mask)
+    ok = ((cands >= math.radians(theta_min_deg)) & (cands <= theta_max)).any(axis=0)
     return boundary & (ok | (E < 0.02))
 
 
@@ -513,6 +515,9 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
     has_l &= mf
     has_b &= mf
     z = np.zeros(n) if init is None else np.where(mf, np.asarray(init, float)[::-1].ravel(), 0.0)
+    # sparsity pattern of the Jacobian: diagonal, left neighbour, neighbour below
+    rows = np.concatenate([idx, idx[has_l], idx[has_b]])
+    cols = np.concatenate([idx, idx[has_l] - 1, idx[has_b] - W])
 
     def residual(zv):
         zl = np.zeros(n)
@@ -542,8 +547,6 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
             dg = d0 + mu * sgn
             dg = np.where(np.abs(dg) < damping, damping * sgn, dg)
             dg = np.where(mf, dg, 1.0)
-            rows = np.concatenate([idx, idx[has_l], idx[has_b]])
-            cols = np.concatenate([idx, idx[has_l] - 1, idx[has_b] - W])
             vals = np.concatenate([dg, rp[has_l], rq[has_b]])
             J = csr_matrix((vals, (rows, cols)), shape=(n, n))
             d = np.where(mf, spsolve_triangular(J, -f, lower=True), 0.0)
@@ -1017,7 +1020,7 @@ def shape_from_shading(image, light, *, method: str = "horn1989", albedo=None, m
         sing = _singular_seeds(E, m, float(singular_delta))
         mode = seeds
         if mode == "auto":
-            mode = "singular" if (sing.any() or not frontal) else "boundary"
+            mode = "boundary" if (frontal and not sing.any()) else "singular"
             if not sing.any() and not frontal:
                 # no pixel faces the light (albedo too high, or no such normal on the surface):
                 # the brightest pixels are the nearest to singular; seed there
@@ -1090,7 +1093,7 @@ def _brightest(img, m, sigma: float = 1.0) -> float:
 
 
 def _contour_light(img, m, *, seed: int = 0, n_trials: int = 300, inlier_frac: float = 0.05):
-    """Robust occluding-contour light fit; returns ``(direction, albedo, inlier mask)``.
+    """Robust occluding-contour light fit; returns ``(direction, albedo)``.
 
     Model at contour pixels: ``I = max(0, a d_x + b d_y + c)`` with ``(a, b) = rho S_xy`` and
     ``c`` absorbing ``rho S_z N_z`` (the pixels read slightly inside the contour).  Edges of the
@@ -1103,9 +1106,9 @@ def _contour_light(img, m, *, seed: int = 0, n_trials: int = 300, inlier_frac: f
     b = occluding_boundary(m)
     dx, dy = _outward_directions(m)
     bi = np.flatnonzero(b)
-    I = img.ravel()[bi]
+    inten = img.ravel()[bi]
     A = np.stack([dx.ravel()[bi], dy.ravel()[bi], np.ones(bi.size)], axis=1)
-    bright = np.flatnonzero(I > 0.1 * rho)
+    bright = np.flatnonzero(inten > 0.1 * rho)
     if bright.size < 8:
         raise ValueError(f"mask: only {int(bright.size)} lit occluding-contour pixels (need >= 8); "
                          "pass a mask whose edge is the object's silhouette, or use "
@@ -1113,27 +1116,27 @@ def _contour_light(img, m, *, seed: int = 0, n_trials: int = 300, inlier_frac: f
     tau = inlier_frac * rho
 
     def consensus(coef):
-        return np.abs(I - np.maximum(0.0, A @ coef)) < tau
+        return np.abs(inten - np.maximum(0.0, A @ coef)) < tau
 
     rng = np.random.default_rng(seed)
     best, best_n = None, -1
     for _ in range(n_trials):
         pick = rng.choice(bright, 3, replace=False)
         try:
-            coef = np.linalg.solve(A[pick], I[pick])
+            coef = np.linalg.solve(A[pick], inten[pick])
         except np.linalg.LinAlgError:
             continue
         n_in = int(consensus(coef).sum())
         if n_in > best_n:
             best, best_n = coef, n_in
     if best is None:
-        best = np.linalg.lstsq(A[bright], I[bright], rcond=None)[0]
+        best = np.linalg.lstsq(A[bright], inten[bright], rcond=None)[0]
     coef = best
     for _ in range(20):
-        use = consensus(coef) & (A @ coef > 0.1 * rho) & (I > 0.02 * rho)
+        use = consensus(coef) & (A @ coef > 0.1 * rho) & (inten > 0.02 * rho)
         if use.sum() < 3:
             break
-        new = np.linalg.lstsq(A[use], I[use], rcond=None)[0]
+        new = np.linalg.lstsq(A[use], inten[use], rcond=None)[0]
         if np.allclose(new, coef, atol=1e-9):
             break
         coef = new
@@ -1143,9 +1146,7 @@ def _contour_light(img, m, *, seed: int = 0, n_trials: int = 300, inlier_frac: f
         sxy = sxy / nxy
         nxy = 1.0
     d = np.array([sxy[0], sxy[1], math.sqrt(max(0.0, 1 - nxy * nxy))])
-    inl = np.zeros(m.size, bool)
-    inl[bi] = consensus(coef)
-    return d / np.linalg.norm(d), rho, inl.reshape(m.shape)
+    return d / np.linalg.norm(d), rho
 
 
 def light_from_shading(image, mask=None, *, method: str = "contour", seed: int = 0) -> LightEstimate:
@@ -1198,7 +1199,7 @@ def light_from_shading(image, mask=None, *, method: str = "contour", seed: int =
     if imax <= 0:
         raise ValueError("image: all zero inside the mask; the light cannot be estimated")
     if method == "contour":
-        d, rho, _ = _contour_light(img, m, seed=seed)
+        d, rho = _contour_light(img, m, seed=seed)
         return LightEstimate(direction=d, albedo=rho, method=method)
     # lee_rosenfeld1985
     inner = ndimage.binary_erosion(m, iterations=2, border_value=0)
