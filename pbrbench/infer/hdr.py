@@ -39,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.optimize import isotonic_regression
 
-from ._validate import check_method
+from pbrbench.checks import check_method
 
 __all__ = [
     "CALIBRATION_WEIGHTINGS",

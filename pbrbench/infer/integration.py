@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from pbrbench.infer._validate import (
+from pbrbench.checks import (
     as_float_array,
     check_finite,
     check_mask,

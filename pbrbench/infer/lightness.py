@@ -32,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.infer._validate import (
+from pbrbench.checks import (
     as_float_array,
     check_finite,
     check_mask,

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask, check_method
+from pbrbench.checks import as_float_array, check_finite, check_mask, check_method
 
 __all__ = ["PhotometricStereoResult", "photometric_stereo", "METHODS"]
 

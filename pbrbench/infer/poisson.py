@@ -28,7 +28,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg
 from scipy.sparse.csgraph import connected_components
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask, check_method
+from pbrbench.checks import as_float_array, check_finite, check_mask, check_method
 
 __all__ = ["solve_gradient_field", "METHODS"]
 

@@ -55,7 +55,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.infer._validate import (
+from pbrbench.checks import (
     as_float_array,
     check_finite,
     check_mask,

@@ -34,7 +34,7 @@ import scipy.sparse as sp
 from scipy import ndimage
 from scipy.sparse.linalg import splu
 
-from pbrbench.infer._validate import (
+from pbrbench.checks import (
     as_float_array,
     check_finite,
     check_mask,

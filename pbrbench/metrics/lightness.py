@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask
+from pbrbench.checks import as_float_array, check_finite, check_mask
 
 __all__ = ["lmse", "lmse_map", "intrinsic_lmse", "si_mse", "albedo_abs_error", "ratio_errors"]
 

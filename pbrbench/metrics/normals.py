@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask
+from pbrbench.checks import as_float_array, check_finite, check_mask
 
 __all__ = [
     "angular_error_map",

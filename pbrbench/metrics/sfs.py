@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask, check_positive
+from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
 
 __all__ = [
     "height_errors",

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.infer._validate import as_float_array, check_finite, check_mask, check_method
+from pbrbench.checks import as_float_array, check_finite, check_mask, check_method
 
 __all__ = ["specular_mask_from_twin", "mask_iou", "removal_errors", "REFERENCES"]
 

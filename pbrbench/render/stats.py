@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage, stats
 
-from pbrbench.infer._validate import as_float_array, check_method
+from pbrbench.checks import as_float_array, check_method
 
 CORRECTIONS = ("bonferroni", "sidak", "none")
 

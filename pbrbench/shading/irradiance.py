@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbrbench.infer._validate import as_float_array, check_positive
+from pbrbench.checks import as_float_array, check_positive
 
 __all__ = [
     "polygon_irradiance",

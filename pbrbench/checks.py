@@ -1,0 +1,161 @@
+"""One set of input checks for every layer (inference, metrics, shading, rendering statistics).
+
+Every check raises :class:`ValueError` whose message names the argument, says what is wrong and
+how to fix it, e.g. ``images: 3 non-finite value(s) (NaN or inf); replace them (e.g.
+np.nan_to_num) or exclude those pixels with the mask argument``.  The command line turns such an
+error into one line and exit code 1.
+
+Only NumPy is imported here (``pbrbench.infer`` must stay importable with NumPy and SciPy alone).
+
+The module also holds the one dispatcher used by every methods table (:func:`call_method`): it
+looks a method up by name and forwards only the options that method accepts, rejecting an
+unknown option with the list of that method's options.
+"""
+
+from __future__ import annotations
+
+import inspect
+from collections.abc import Callable, Iterable, Mapping
+
+import numpy as np
+
+__all__ = [
+    "as_float_array",
+    "call_method",
+    "check_finite",
+    "check_int",
+    "check_mask",
+    "check_method",
+    "check_number",
+    "check_positive",
+    "method_options",
+]
+
+
+def as_float_array(x, name: str, *, ndim: Iterable[int] | None = None, dtype=np.float64) -> np.ndarray:
+    """``x`` as a real float array, checking its number of dimensions.
+
+    Raises ``ValueError`` if ``x`` is not numeric (object, string, complex) or has the wrong
+    number of dimensions.
+    """
+    try:
+        arr = np.asarray(x)
+    except Exception as exc:  # pragma: no cover - numpy raises many things
+        raise ValueError(f"{name}: could not convert to an array ({exc}); pass a NumPy array") from exc
+    if np.iscomplexobj(arr):
+        raise ValueError(f"{name}: complex values (dtype {arr.dtype}); pass real values "
+                         "(np.real(x) or np.abs(x), whichever the data means)")
+    if arr.dtype == object or not (np.issubdtype(arr.dtype, np.number) or arr.dtype == bool):
+        raise ValueError(f"{name}: expected a numeric array, got dtype {arr.dtype}; pass a NumPy array of numbers")
+    if ndim is not None:
+        ndims = tuple(ndim)
+        if arr.ndim not in ndims:
+            want = " or ".join(str(n) for n in ndims)
+            raise ValueError(f"{name}: expected {want} dimensions, got shape {arr.shape}; reshape the input")
+    return arr.astype(dtype, copy=False)
+
+
+def check_finite(arr: np.ndarray, name: str, *, where: np.ndarray | None = None) -> None:
+    """Raise ``ValueError`` if ``arr`` holds NaN or infinite values (inside ``where`` if given)."""
+    vals = arr if where is None else arr[where]
+    bad = ~np.isfinite(vals)
+    if np.any(bad):
+        n = int(bad.sum())
+        raise ValueError(
+            f"{name}: {n} non-finite value(s) (NaN or inf); replace them (e.g. np.nan_to_num) "
+            "or exclude those pixels with the mask argument"
+        )
+
+
+def check_mask(mask, shape: tuple[int, ...], name: str = "mask") -> np.ndarray:
+    """Return ``mask`` as a boolean array of ``shape`` (all True when ``mask`` is None)."""
+    if mask is None:
+        return np.ones(shape, dtype=bool)
+    m = np.asarray(mask)
+    if m.shape != tuple(shape):
+        raise ValueError(f"{name}: shape {m.shape} does not match the image shape {tuple(shape)}; pass an (H, W) boolean mask")
+    if m.dtype != bool:
+        if m.dtype == object or np.iscomplexobj(m) or not np.isin(m, (0, 1)).all():
+            raise ValueError(f"{name}: must be boolean (or 0/1); got values outside {{0, 1}}")
+        m = m.astype(bool)
+    if not m.any():
+        raise ValueError(f"{name}: no pixel is selected; pass a mask with at least one True pixel")
+    return m
+
+
+def check_method(method: str, methods: Iterable[str], name: str = "method") -> str:
+    """Raise ``ValueError`` naming the valid choices if ``method`` is not one of ``methods``."""
+    valid = list(methods)
+    if not isinstance(method, str) or method not in valid:
+        raise ValueError(f"{name}={method!r} is not known; choose one of {', '.join(repr(m) for m in valid)}")
+    return method
+
+
+def check_positive(value, name: str) -> float:
+    """Return ``value`` as float, raising ``ValueError`` unless it is finite and > 0."""
+    return check_number(value, name, lo=0.0, lo_open=True)
+
+
+def check_number(value, name: str, *, lo: float | None = None, hi: float | None = None,
+                 lo_open: bool = False, hi_open: bool = False) -> float:
+    """``value`` as a finite float inside ``[lo, hi]`` (``lo_open`` / ``hi_open``: strict bounds)."""
+    if isinstance(value, bool) or np.iscomplexobj(value):
+        raise ValueError(f"{name}: must be a real number, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: must be a number, got {value!r}") from exc
+    below = lo is not None and (v <= lo if lo_open else v < lo)
+    above = hi is not None and (v >= hi if hi_open else v > hi)
+    if not np.isfinite(v) or below or above:
+        parts = []
+        if lo is not None:
+            parts.append(f"{'>' if lo_open else '>='} {lo:g}")
+        if hi is not None:
+            parts.append(f"{'<' if hi_open else '<='} {hi:g}")
+        rng = f" {' and '.join(parts)}" if parts else ""
+        raise ValueError(f"{name}: must be a finite number{rng}, got {value!r}")
+    return v
+
+
+def check_int(value, name: str, lo: int = 1, hi: int | None = None) -> int:
+    """``value`` as an int in ``[lo, hi]``; floats with an integral value are accepted, bools not."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name}: must be an integer >= {lo}, got {value!r}")
+    try:
+        iv = int(value)
+        ok = iv == value
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok or iv < lo or (hi is not None and iv > hi):
+        rng = f">= {lo}" + (f" and <= {hi}" if hi is not None else "")
+        raise ValueError(f"{name}: must be an integer {rng}, got {value!r}")
+    return iv
+
+
+# ----------------------------------------------------------------------------- dispatching
+def method_options(fn: Callable) -> tuple[str, ...]:
+    """The keyword options a method accepts (its keyword-only parameters and those with defaults)."""
+    out = []
+    for p in inspect.signature(fn).parameters.values():
+        if p.kind is inspect.Parameter.KEYWORD_ONLY or (
+                p.kind is inspect.Parameter.POSITIONAL_OR_KEYWORD and p.default is not inspect.Parameter.empty):
+            out.append(p.name)
+    return tuple(out)
+
+
+def call_method(methods: Mapping[str, Callable], method: str, problem: str, *args, **options):
+    """Call ``methods[method](*args, **options)`` after checking the name and the options.
+
+    ``problem`` names the dispatcher in messages (e.g. ``"shape_from_shading"``).  An option the
+    chosen method does not accept raises ``ValueError`` listing the options it does accept, so a
+    misspelt or misplaced option never goes silently unused.
+    """
+    check_method(method, methods)
+    fn = methods[method]
+    accepted = method_options(fn)
+    unknown = sorted(k for k in options if k not in accepted)
+    if unknown:
+        raise ValueError(f"{problem}(method={method!r}): unknown option(s) {', '.join(unknown)}; "
+                         f"{method} accepts {', '.join(accepted) or 'no options'}")
+    return fn(*args, **options)
