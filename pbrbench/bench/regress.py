@@ -24,7 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 K = 3.0
@@ -35,14 +35,11 @@ FORMAT = 1
 KEY_FIELDS = ("task", "scene", "condition", "algorithm", "metric")
 
 
-def baselines_dir() -> Path:
-    """``PBRBENCH_BASELINES``, else ``tests/baselines`` of the source tree."""
-    env = os.environ.get("PBRBENCH_BASELINES")
-    return Path(env) if env else Path(__file__).resolve().parents[2] / "tests" / "baselines"
+def baseline_path(quality: str, settings=None) -> Path | None:
+    """``<baselines>/<quality>.json`` of the ``baselines`` setting (None without one)."""
+    from pbrbench.settings import Settings
 
-
-def baseline_path(quality: str, root: str | os.PathLike | None = None) -> Path:
-    return Path(root or baselines_dir()) / f"{quality}.json"
+    return (settings or Settings.from_env()).baseline_path(quality)
 
 
 def score_key(s: dict) -> str:
@@ -70,6 +67,7 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list[int], n
         spread = (max(finite) - min(finite)) if len(finite) > 1 else 0.0
         value = _val(s["value"])
         entries[key] = {**{f: s.get(f, "") for f in KEY_FIELDS}, "scene_hash": s.get("scene_hash", ""),
+                        "algorithm_version": s.get("algorithm_version", ""),
                         "value": value if math.isfinite(value) else None,
                         "better": s.get("better", "lower"), "spread": spread, "n_seeds": len(vals),
                         "tolerance": tolerance(value, spread)}
@@ -130,6 +128,7 @@ class Comparison:
     missing: list[str]       # baseline keys the run did not produce (only for tasks it ran)
     new: list[str]           # scores without a baseline
     n_checked: int
+    version_changed: list[str] = field(default_factory=list)  # algorithms whose version differs
 
     @property
     def ok(self) -> bool:
@@ -141,6 +140,7 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
     entries = (baselines or {}).get("entries", {})
     regs, imps, new = [], [], []
     seen = set()
+    changed_versions: dict[str, None] = {}
     for s in scores:
         key = score_key(s)
         b = entries.get(key)
@@ -148,6 +148,8 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
             new.append(key)
             continue
         seen.add(key)
+        if b.get("algorithm_version") and s.get("algorithm_version") and b["algorithm_version"] != s["algorithm_version"]:
+            changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {b['algorithm_version']} -> {s['algorithm_version']}")
         old, cur = _val(b["value"]), _val(s["value"])
         tol = float(b["tolerance"])
         better = b.get("better", s.get("better", "lower"))
@@ -169,14 +171,4 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
             (regs if kind == "regression" else imps).append(ch)
     tasks = {s["task"] for s in scores}
     missing = sorted(k for k, b in entries.items() if b["task"] in tasks and k not in seen)
-    return Comparison(regs, imps, missing, new, len(seen))
-
-
-def markers(comparison: Comparison) -> dict[tuple[str, str, str], str]:
-    """(task, algorithm, condition) -> "regression" / "improvement" for the headline table."""
-    out: dict[tuple[str, str, str], str] = {}
-    for ch in comparison.improvements:
-        out.setdefault((ch.task, ch.algorithm, ch.condition), "improvement")
-    for ch in comparison.regressions:
-        out[(ch.task, ch.algorithm, ch.condition)] = "regression"
-    return out
+    return Comparison(regs, imps, missing, new, len(seen), list(changed_versions))

@@ -1,14 +1,17 @@
 """The results store: every benchmark run and every score, in one SQLite file.
 
-Default location ``reports/history.sqlite`` (``--store PATH`` or ``PBRBENCH_STORE`` override).
+Location: the ``store`` setting (:class:`pbrbench.settings.Settings`: ``--store``, ``PBRBENCH_STORE``,
+else ``<out>/history.sqlite``).
 
 Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, numbered
 :data:`MIGRATIONS`; the table ``schema_migrations`` records which have been applied):
 
 * ``runs``: id, time (UTC ISO 8601), git revision, package / mitsuba / drjit / numpy versions,
-  variant, machine, quality, config (JSON), status (running | complete | interrupted | failed);
+  variant, machine, quality, config (JSON), status (running | complete | interrupted | failed),
+  comparison (JSON: the regression comparison with the baselines, made once by the run);
 * ``scores``: run, task, scene, scene_hash, condition, algorithm, algorithm_version, metric,
-  value, seconds, better (lower | higher), unit, job (the job key, for resuming);
+  value, uncertainty (one standard error, NULL when none was estimated), seconds, better
+  (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
   Monte Carlo noise floor, render time): the report shows its noise without re-reading renders.
@@ -34,16 +37,6 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 
-def resolve_store_path(store: str | None, out: str | os.PathLike = "reports") -> Path:
-    """The results database: ``store`` if given, else ``PBRBENCH_STORE``, else ``<out>/history.sqlite``."""
-    if store:
-        return Path(store)
-    if os.environ.get("PBRBENCH_STORE"):
-        return Path(os.environ["PBRBENCH_STORE"])
-    return Path(out) / "history.sqlite"
-
-
-DEFAULT_PATH = Path("reports") / "history.sqlite"
 BUSY_TIMEOUT_MS = 60_000
 
 # (version, description, SQL). Never edit an applied migration: append a new one.
@@ -103,18 +96,17 @@ CREATE TABLE ground_truths (
     PRIMARY KEY (run, scene)
 );
 """),
+    (2, "per-score uncertainty; the regression comparison stored with its run", """
+ALTER TABLE scores ADD COLUMN uncertainty REAL;
+ALTER TABLE runs ADD COLUMN comparison TEXT
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
 RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version", "drjit_version",
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
-                "metric", "value", "seconds", "better", "unit", "job")
-
-
-def default_path() -> Path:
-    env = os.environ.get("PBRBENCH_STORE")
-    return Path(env) if env else DEFAULT_PATH
+                "metric", "value", "seconds", "better", "unit", "job", "uncertainty")
 
 
 def _now() -> str:
@@ -161,6 +153,11 @@ def environment() -> dict:
     }
 
 
+def _json_default(x):
+    f = float(x)
+    return f if math.isfinite(f) else None
+
+
 def _num(x):
     """A float for SQLite (NaN and inf are stored as NULL / as themselves respectively)."""
     if x is None:
@@ -172,8 +169,8 @@ def _num(x):
 class Store:
     """A connection to the results database (created and migrated on open)."""
 
-    def __init__(self, path: str | os.PathLike | None = None):
-        self.path = Path(path) if path is not None else default_path()
+    def __init__(self, path: str | os.PathLike):
+        self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         self.conn = sqlite3.connect(str(self.path), timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
         self.conn.row_factory = sqlite3.Row
@@ -268,7 +265,18 @@ class Store:
             return None
         d = dict(row)
         d["config"] = json.loads(d["config"] or "{}")
+        d["comparison"] = json.loads(d["comparison"]) if d.get("comparison") else None
         return d
+
+    def set_comparison(self, run_id: str, comparison: dict):
+        """Store the run's regression comparison (computed once, by the run; the report reads it)."""
+        with self.transaction() as c:
+            c.execute("UPDATE runs SET comparison = ? WHERE id = ?",
+                      (json.dumps(comparison, sort_keys=True, default=_json_default), run_id))
+
+    def get_comparison(self, run_id: str) -> dict | None:
+        run = self.get_run(run_id)
+        return None if run is None else run["comparison"]
 
     def resolve_run(self, ref: str | None) -> str:
         """A run id from a reference: an id, a unique prefix, ``latest`` / None, or ``-N``."""
@@ -307,6 +315,7 @@ class Store:
         rows = [dict(r) for r in self.conn.execute(q, args)]
         for r in rows:
             r["config"] = json.loads(r["config"] or "{}")
+            r["comparison"] = json.loads(r["comparison"]) if r.get("comparison") else None
         return rows[-limit:] if limit else rows
 
     # ------------------------------------------------------------------ scores and jobs
@@ -318,7 +327,8 @@ class Store:
             d = s if isinstance(s, dict) else s.as_dict()
             rows.append((run_id, d["task"], d["scene"], d.get("scene_hash", "") or "", d.get("condition", "") or "",
                          d["algorithm"], d.get("algorithm_version", "") or "", d["metric"], _num(d["value"]),
-                         _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key))
+                         _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key,
+                         _num(d.get("uncertainty"))))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -343,6 +353,8 @@ class Store:
             d = dict(r)
             if d["value"] is None:
                 d["value"] = float("nan")
+            if d.get("uncertainty") is None:
+                d["uncertainty"] = float("nan")
             out.append(d)
         return out
 
@@ -386,8 +398,9 @@ class Store:
         """Write the run and its scores as JSON (NaN written as null)."""
         data = self.export_run(run_id)
         for s in data["scores"]:
-            if isinstance(s["value"], float) and math.isnan(s["value"]):
-                s["value"] = None
+            for k in ("value", "uncertainty"):
+                if isinstance(s.get(k), float) and not math.isfinite(s[k]):
+                    s[k] = None
         p = Path(path)
         p.parent.mkdir(parents=True, exist_ok=True)
         tmp = p.with_suffix(p.suffix + ".tmp")

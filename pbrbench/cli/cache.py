@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pbrbench.cli.common import add_cache, apply_env
+from pbrbench.cli.common import add_cache, settings
 
 
 def register(sub):
@@ -13,10 +13,9 @@ def register(sub):
 
 
 def run(args) -> int:
-    apply_env(args)
     from pbrbench.render.cache import RenderCache
 
-    c = RenderCache(args.cache)
+    c = RenderCache(settings(args).cache)
     if args.action == "info":
         i = c.info()
         print(f"root     {i['root']}\nentries  {i['entries']}\nsize     {i['bytes'] / 1e6:.1f} MB")

@@ -1,15 +1,20 @@
-"""Options and helpers shared by several subcommands."""
+"""Options and helpers shared by several subcommands.
+
+Every subcommand resolves one :class:`pbrbench.settings.Settings` from its arguments
+(:func:`settings`) and passes it on; quality choices come from the quality profiles.
+"""
 
 from __future__ import annotations
 
-import os
-import sys
-import time
+from pathlib import Path
 
 
 def add_quality(p, default="standard"):
-    p.add_argument("--quality", choices=["draft", "standard", "high"], default=default,
-                   help=f"render quality preset (default: {default})")
+    from pbrbench.render.quality import PRESETS
+
+    descr = "; ".join(f"{q.name}: {q.description}" for q in PRESETS.values() if q.description)
+    p.add_argument("--quality", choices=list(PRESETS), default=default,
+                   help=f"quality profile (default: {default}). {descr}")
 
 
 def add_variant(p):
@@ -21,34 +26,29 @@ def add_cache(p):
     p.add_argument("--cache", default=None, help="render cache directory (default: PBRBENCH_CACHE or ~/.cache/pbrbench)")
 
 
-def apply_env(args):
-    """Options that must be in the environment before mitsuba is imported."""
-    if getattr(args, "variant", None):
-        os.environ["PBRBENCH_VARIANT"] = args.variant
-    if getattr(args, "cache", None):
-        os.environ["PBRBENCH_CACHE"] = args.cache
+def add_store(p):
+    p.add_argument("--out", default=None, metavar="DIR", help="reports directory (default: reports)")
+    p.add_argument("--store", default=None, metavar="PATH",
+                   help="results database (default: PBRBENCH_STORE or DIR/history.sqlite)")
 
 
-class RenderProgress:
-    """A tqdm bar over render passes, shown only once a render has run longer than a second."""
+def settings(args):
+    """The settings of this invocation (argument, else environment, else default); the Mitsuba
+    variant choice is configured with them before anything renders."""
+    from pbrbench.render import variant
+    from pbrbench.settings import Settings
 
-    def __init__(self, total: int, desc: str):
-        self.total, self.desc = total, desc
-        self.t0 = time.perf_counter()
-        self.bar = None
-        self.n = 0
+    s = Settings.resolve(args)
+    variant.configure(s)
+    return s
 
-    def __call__(self, what: str):
-        self.n += 1
-        wanted = sys.stderr.isatty() or os.environ.get("PBRBENCH_PROGRESS") == "1"
-        if self.bar is None and wanted and time.perf_counter() - self.t0 > 1.0:
-            from tqdm import tqdm
 
-            self.bar = tqdm(total=self.total, desc=self.desc, unit="pass", leave=False, initial=self.n - 1)
-        if self.bar is not None:
-            self.bar.set_postfix_str(what)
-            self.bar.update(1)
+def open_store(s):
+    """The results database of settings ``s``; a one-line error when there is none yet."""
+    from pbrbench.bench.store import Store
+    from pbrbench.errors import UserError
 
-    def close(self):
-        if self.bar is not None:
-            self.bar.close()
+    p = Path(s.store_path())
+    if not p.is_file():
+        raise UserError(f"--store {p}: no results database there; run `pbrbench run` first or pass --store")
+    return Store(p)

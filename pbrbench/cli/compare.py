@@ -13,8 +13,9 @@ def register(sub):
     p.add_argument("--all", action="store_true", help="also list unchanged scores")
     p.add_argument("--rel", type=float, default=0.0, metavar="R",
                    help="call a change unchanged when |b - a| <= R * |a| (default 0: exact)")
-    p.add_argument("--out", default="reports", metavar="DIR")
-    p.add_argument("--store", default=None, metavar="PATH", help="results database")
+    from pbrbench.cli.common import add_store
+
+    add_store(p)
     p.set_defaults(func=run)
 
 
@@ -48,10 +49,10 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
 
 
 def run(args) -> int:
-    from pbrbench.cli.report import open_store
+    from pbrbench.cli.common import open_store, settings
     from pbrbench.report.html import fmt
 
-    with open_store(args) as store:
+    with open_store(settings(args)) as store:
         a, b = store.resolve_run(args.run_a), store.resolve_run(args.run_b)
         rows = differences(store.scores(a, task=args.task), store.scores(b, task=args.task), rel=args.rel)
     counts = {}

@@ -6,17 +6,19 @@ from __future__ import annotations
 def register(sub):
     p = sub.add_parser("history", help="list the stored benchmark runs")
     p.add_argument("--task", default=None, help="only runs that scored this task")
-    p.add_argument("--quality", default=None, choices=["draft", "standard", "high"])
+    from pbrbench.cli.common import add_store
+    from pbrbench.render.quality import names
+
+    p.add_argument("--quality", default=None, choices=names())
     p.add_argument("--limit", type=int, default=30, help="show the last N runs (default 30)")
-    p.add_argument("--out", default="reports", metavar="DIR", help="reports directory (default: reports)")
-    p.add_argument("--store", default=None, metavar="PATH", help="results database")
+    add_store(p)
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    from pbrbench.cli.report import open_store
+    from pbrbench.cli.common import open_store, settings
 
-    with open_store(args) as store:
+    with open_store(settings(args)) as store:
         runs = store.runs(task=args.task, quality=args.quality, limit=args.limit)
     if not runs:
         print("no runs stored" + (f" for task {args.task}" if args.task else ""))

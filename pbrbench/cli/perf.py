@@ -24,8 +24,9 @@ def register(sub):
     p = sub.add_parser("perf", help="speed benchmarks of inference kernels and renders (stored like scores)")
     p.add_argument("areas", nargs="*", metavar="AREA", help="perf modules to run (default: all in pbrbench/perf/)")
     p.add_argument("--quick", action="store_true", help="smaller problem sizes (seconds instead of minutes)")
-    p.add_argument("--out", default="reports", metavar="DIR")
-    p.add_argument("--store", default=None, metavar="PATH", help="results database")
+    from pbrbench.cli.common import add_store
+
+    add_store(p)
     p.add_argument("--no-store", action="store_true", help="print only")
     p.set_defaults(func=run)
 
@@ -60,9 +61,9 @@ def run(args) -> int:
     store = run_id = None
     if not args.no_store:
         from pbrbench.bench.store import Store
-        from pbrbench.cli.report import store_path
+        from pbrbench.cli.common import settings
 
-        store = Store(store_path(args))
+        store = Store(settings(args).store_path())
         run_id = store.create_run(quality="perf", config={"perf_areas": chosen, "quick": args.quick})
     failed = []
     for area in chosen:

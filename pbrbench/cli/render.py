@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from pbrbench.cli.common import RenderProgress, add_cache, add_quality, add_variant, apply_env
+from pbrbench.cli.common import add_cache, add_quality, add_variant, settings
 from pbrbench.errors import UserError
 
 
@@ -30,26 +30,28 @@ def _safe(name: str) -> str:
 
 
 def run(args) -> int:
-    apply_env(args)
+    st = settings(args)
+    from pbrbench.progress import Progress
     from pbrbench.render.cache import RenderCache, ground_truth
     from pbrbench.render.groundtruth import n_passes
     from pbrbench.render.previews import write_previews
     from pbrbench.scene.load import load_library, resolve
 
     if args.all:
-        specs = list(load_library().values())
+        specs = list(load_library(st.scenes).values())
     elif args.scenes:
-        specs = resolve(args.scenes)
+        specs = resolve(args.scenes, st.scenes)
     else:
         raise UserError("render: name at least one SCENE (see `pbrbench scenes`) or pass --all")
-    cache = RenderCache(args.cache)
+    cache = RenderCache(st.cache)
+    bars = st.progress_bars(sys.stderr)
     t_all = time.perf_counter()
     rows = []
     for spec in specs:
-        prog = RenderProgress(n_passes(spec), spec.name)
         t0 = time.perf_counter()
-        gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force, progress=prog)
-        prog.close()
+        with Progress(n_passes(spec), spec.name, bars=bars, unit="pass", lines=False) as prog:
+            gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force,
+                                      progress=lambda what, p=prog: p.update(1, what))
         dt = time.perf_counter() - t0
         where = cache.entry_dir(gt.meta["cache_key"])
         if args.out:

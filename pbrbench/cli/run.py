@@ -4,32 +4,29 @@ from __future__ import annotations
 
 import sys
 
-from pbrbench.cli.common import add_cache, add_variant, apply_env
+from pbrbench.cli.common import add_cache, add_quality, add_store, add_variant, settings
 
 EXIT_OK, EXIT_FAILED_JOBS, EXIT_REGRESSION = 0, 1, 2
 
 
 def register(sub):
-    from pbrbench.tasks import TASK_MODULES
+    from pbrbench.tasks import task_names
 
     p = sub.add_parser("run", help="run the benchmark: render (cached), infer, score, store, report",
                        description="Run the benchmark tasks, store every score and write the HTML report. "
-                                   f"Tasks: {', '.join(TASK_MODULES)}.")
+                                   f"Tasks: {', '.join(task_names())}.")
     p.add_argument("--tasks", nargs="+", metavar="TASK", default=None, help="tasks to run (default: all)")
-    p.add_argument("--quality", choices=["draft", "standard", "high"], default="standard",
-                   help="render quality preset (default: standard; draft is the CI setting)")
+    add_quality(p)
     p.add_argument("--executor", choices=["local", "dask"], default="local",
                    help="local: this process; dask: a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (default: start a LocalCluster)")
     p.add_argument("--workers", type=int, default=None, metavar="N",
                    help="LocalCluster worker processes (one thread each; default: cores / 2)")
-    p.add_argument("--out", default="reports", metavar="DIR", help="reports go to DIR/<run>/ (default: reports)")
-    p.add_argument("--store", default=None, metavar="PATH",
-                   help="results database (default: PBRBENCH_STORE or DIR/history.sqlite)")
+    add_store(p)
     p.add_argument("--seed", type=int, default=0, help="seed handed to every job (default 0)")
     p.add_argument("--check", action="store_true",
-                   help="compare with tests/baselines/<quality>.json and exit 2 on a regression")
+                   help="compare with the regression baselines (tests/baselines/<quality>.json) and exit 2 on a regression")
     p.add_argument("--update-baselines", action="store_true",
                    help="rerun with more seeds, measure the spread and rewrite tests/baselines/<quality>.json")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run (its id)")
@@ -56,10 +53,10 @@ def summary_lines(outcome) -> list[str]:
 
 
 def run(args) -> int:
-    apply_env(args)
-    from pbrbench.bench.runner import RunConfig, run_benchmark, update_baselines
+    from pbrbench.bench.run import RunConfig, run_benchmark, update_baselines
     from pbrbench.errors import UserError
 
+    st = settings(args)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers {args.workers}: give at least 1")
     if args.workers and args.executor != "dask":
@@ -69,10 +66,9 @@ def run(args) -> int:
     if args.resume and (args.tasks or args.update_baselines):
         raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
     cfg = RunConfig(tasks=args.tasks, quality=args.quality, seed=args.seed, executor=args.executor,
-                    scheduler=args.scheduler, workers=args.workers, out=args.out, store=args.store,
-                    cache=args.cache, variant=args.variant, resume=args.resume, report=not args.no_report,
+                    scheduler=args.scheduler, workers=args.workers, resume=args.resume, report=not args.no_report,
                     check=args.check, update_baselines=args.update_baselines)
-    o = run_benchmark(cfg)
+    o = run_benchmark(cfg, settings=st)
     print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
           f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
     for line in summary_lines(o):
@@ -85,7 +81,8 @@ def run(args) -> int:
     comp = o.comparison
     if comp is not None:
         print(f"baselines: {comp.n_checked} scores checked, {len(comp.regressions)} regression(s), "
-              f"{len(comp.improvements)} improvement(s), {len(comp.missing)} missing, {len(comp.new)} new")
+              f"{len(comp.improvements)} improvement(s), {len(comp.missing)} missing, {len(comp.new)} new"
+              + (f", {len(comp.version_changed)} algorithm version(s) changed" if comp.version_changed else ""))
         for ch in comp.regressions[:20]:
             print("  " + str(ch))
         if len(comp.regressions) > 20:
@@ -99,7 +96,7 @@ def run(args) -> int:
               f"`pbrbench run --quality {cfg.quality} --update-baselines`", file=sys.stderr)
         code = EXIT_REGRESSION
     if args.update_baselines:
-        path = update_baselines(cfg, o)
+        path = update_baselines(cfg, o, settings=st)
         print(f"baselines written: {path}")
     if o.report:
         print(f"report: {o.report.resolve()}")

@@ -10,9 +10,10 @@ def register(sub):
 
 
 def run(args) -> int:
+    from pbrbench.cli.common import settings
     from pbrbench.scene.load import library_files, load_scene_file
 
-    for f in library_files():
+    for f in library_files(settings(args).scenes):
         specs = load_scene_file(f)
         if args.expand:
             for s in specs:

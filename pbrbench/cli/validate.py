@@ -5,11 +5,11 @@ from __future__ import annotations
 import sys
 import time
 
-from pbrbench.cli.common import add_cache, add_quality, add_variant, apply_env
+from pbrbench.cli.common import add_cache, add_quality, add_variant, settings
 
 
 def register(sub):
-    from pbrbench.validate import CHECKS
+    from pbrbench.render.proofs import CHECKS
 
     p = sub.add_parser("validate", help="check the renderer against closed forms and statistical tests (exit 2 on failure)")
     add_quality(p, default="draft")
@@ -38,7 +38,7 @@ def format_table(records: list[dict]) -> str:
 def run(args) -> int:
     apply_env(args)
     from pbrbench.render.cache import RenderCache
-    from pbrbench.validate import CHECKS, run_checks
+    from pbrbench.render.proofs import CHECKS, run_checks
 
     if args.checks:
         unknown = [c for c in args.checks if c not in CHECKS]
@@ -52,16 +52,8 @@ def run(args) -> int:
         bad = sum(not r["passed"] for r in recs)
         print(f"  {name}: {len(recs)} record(s), {bad} failed ({time.perf_counter() - t0:.1f}s)", file=sys.stderr, flush=True)
 
-    if args.diagnostics:
-        import pbrbench.validate as V
-
-        orig = V.CHECKS["decomposition"]
-        V.CHECKS["decomposition"] = lambda q, c: V.check_decomposition(q, c, diagnostics_dir=args.diagnostics)
-    try:
-        records = run_checks(args.quality, args.checks, RenderCache(args.cache), progress=progress)
-    finally:
-        if args.diagnostics:
-            V.CHECKS["decomposition"] = orig
+    records = run_checks(args.quality, args.checks, RenderCache(st.cache), progress=progress,
+                         diagnostics_dir=args.diagnostics)
     print(format_table(records))
     n_bad = sum(not r["passed"] for r in records)
     print(f"{len(records) - n_bad}/{len(records)} checks passed ({args.quality}, {time.perf_counter() - t0:.1f}s)", file=sys.stderr)

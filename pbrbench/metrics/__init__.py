@@ -1,7 +1,10 @@
 """Scores: each function compares an estimate with the ground truth.
 
 One module per area (``hdr``, ``lightness``, ``specular``, ``normals``, ``sfs``); the public
-functions are re-exported here, so ``from pbrbench.metrics import lmse`` works.
+functions are re-exported here, so ``from pbrbench.metrics import lmse`` works.  Each module's
+``METRICS`` table gives every score name its direction ("lower" / "higher" is better), unit and
+meaning; :data:`METRICS` merges them and :func:`metric` looks one up (``docs/adding.md`` says how
+to add one: a function plus one row).
 """
 
 from pbrbench.metrics.hdr import (
@@ -35,9 +38,29 @@ from pbrbench.metrics.sfs import (
     normal_angle,
     sfs_scores,
 )
-from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
+from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin, specular_scores
+from pbrbench.metrics.table import STATUS, Metric, merge
+
+
+def _tables():
+    from pbrbench.metrics import hdr, lightness, normals, sfs, specular
+
+    return merge(STATUS, normals.METRICS, sfs.METRICS, lightness.METRICS, hdr.METRICS, specular.METRICS)
+
+
+METRICS: dict[str, Metric] = _tables()
+
+
+def metric(name: str) -> Metric:
+    """The table row of metric ``name``; ``ValueError`` when no metrics module lists it."""
+    try:
+        return METRICS[name]
+    except KeyError:
+        raise ValueError(f"metric {name!r} is in no metrics table; add a row to the METRICS table of its "
+                         "pbrbench/metrics/<area>.py module (direction, unit, meaning)") from None
 
 __all__ = [
+    "METRICS", "Metric", "metric", "specular_scores",
     "albedo_abs_error", "albedo_relative_error", "ambiguity_aware_scores", "angular_error_map",
     "angular_error_stats", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
     "height_errors", "height_rmse", "height_rmse_scaled", "intrinsic_lmse", "invalid_fraction",

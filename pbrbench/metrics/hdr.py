@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pbrbench.metrics.table import table
+
 __all__ = [
     "hdr_scores",
     "invalid_fraction",
@@ -158,3 +160,15 @@ def hdr_scores(estimate, truth, *, mask=None) -> dict[str, float]:
     out["bright1"], out["dark1"] = ext["bright"], ext["dark"]
     out["invalid_fraction"] = invalid_fraction(estimate)
     return out
+
+
+METRICS = table(
+    ("log2_rmse", "lower", "stops", "log2 radiance RMSE after the one free global scale", "hdr_scores"),
+    ("log2_rmse_c0", "lower", "stops", "log2 radiance RMSE of the red channel", "hdr_scores"),
+    ("log2_rmse_c1", "lower", "stops", "log2 radiance RMSE of the green channel", "hdr_scores"),
+    ("log2_rmse_c2", "lower", "stops", "log2 radiance RMSE of the blue channel", "hdr_scores"),
+    ("bright1", "lower", "stops", "log2 radiance RMSE on the brightest 1 % of the pixels", "hdr_scores"),
+    ("dark1", "lower", "stops", "log2 radiance RMSE on the darkest 1 % of the pixels", "hdr_scores"),
+    ("invalid_fraction", "lower", "fraction", "fraction of pixels without a finite positive estimate", "hdr_scores"),
+    ("response_rmse", "lower", "stops", "RMSE of the recovered inverse response vs the true one (log2, per-channel scale removed)", "response_rmse"),
+)

@@ -20,8 +20,10 @@ import numpy as np
 from scipy import ndimage
 
 from pbrbench.checks import as_float_array, check_finite, check_mask
+from pbrbench.metrics.table import table
 
-__all__ = ["lmse", "lmse_map", "intrinsic_lmse", "si_mse", "albedo_abs_error", "ratio_errors"]
+__all__ = ["lmse", "lmse_map", "intrinsic_lmse", "si_mse", "albedo_abs_error", "ratio_errors",
+           "lightness_scores", "METRICS"]
 
 _ALPHA_MIN_ENERGY = 1e-5  # the MIT code's guard: alpha = 0 when sum(est^2) <= 1e-5
 
@@ -192,3 +194,34 @@ def ratio_errors(est, true, labels, *, mask=None, erode: int = 2) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         err = (em[a] / em[b]) / (tm[a] / tm[b]) - 1.0
     return err[:, 0] if e.shape[2] == 1 and np.asarray(est).ndim == 2 else err
+
+
+def lightness_scores(refl, shad, refl_true, shad_true, *, mask, labels=None, window: int = 20) -> dict[str, float]:
+    """The lightness task's scores of one (reflectance, shading) estimate: ``lmse`` (reflectance),
+    ``intrinsic_lmse``, ``si_mse``, ``albedo_abs_err`` and, when patch ``labels`` are given and
+    at least two patches survive the erosion, ``ratio_err_max`` / ``ratio_err_median`` (the
+    largest and median absolute reflectance-ratio errors, :func:`ratio_errors` with ``erode=1``)."""
+    out = {"lmse": lmse(refl, refl_true, mask=mask, window=window),
+           "intrinsic_lmse": intrinsic_lmse(refl, shad, refl_true, shad_true, mask=mask, window=window),
+           "si_mse": si_mse(refl, refl_true, mask=mask),
+           "albedo_abs_err": albedo_abs_error(refl, refl_true, mask=mask)}
+    if labels is not None:
+        try:
+            r = np.abs(ratio_errors(refl, refl_true, labels, mask=mask, erode=1))
+        except ValueError:
+            r = np.zeros(0)
+        r = r[np.isfinite(r)]
+        if r.size:
+            out["ratio_err_max"] = float(r.max())
+            out["ratio_err_median"] = float(np.median(r))
+    return out
+
+
+METRICS = table(
+    ("lmse", "lower", "", "local scale-invariant MSE of the reflectance (Grosse et al. 2009, MIT variant)", "lightness_scores"),
+    ("intrinsic_lmse", "lower", "", "mean of the reflectance and shading LMSE (the published score)", "lightness_scores"),
+    ("si_mse", "lower", "", "scale-invariant MSE of the reflectance (one best global scale)", "lightness_scores"),
+    ("albedo_abs_err", "lower", "albedo", "mean absolute reflectance error, no rescaling (scores the anchor rule)", "lightness_scores"),
+    ("ratio_err_max", "lower", "fraction", "largest relative error of reflectance ratios between papers", "lightness_scores"),
+    ("ratio_err_median", "lower", "fraction", "median relative error of reflectance ratios between papers", "lightness_scores"),
+)

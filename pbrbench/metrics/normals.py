@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_mask
+from pbrbench.metrics.table import table
 
 __all__ = [
     "angular_error_map",
@@ -18,6 +19,11 @@ __all__ = [
     "albedo_relative_error",
     "height_rmse",
     "height_rmse_scaled",
+    "normal_scores",
+    "albedo_scores",
+    "height_scores",
+    "largest_component",
+    "METRICS",
 ]
 
 
@@ -139,3 +145,77 @@ def height_rmse_scaled(est, true, mask=None) -> float:
     coef = np.linalg.lstsq(x, b, rcond=None)[0]
     r = b - x @ coef
     return float(np.sqrt(np.mean(r * r)))
+
+
+# ----------------------------------------------------------------------------- task scores
+def normal_scores(est, true, domain, valid) -> tuple[dict, np.ndarray]:
+    """DiLiGenT angular-error scores over ``domain`` (an invalid estimate scores 90 degrees:
+    :func:`angular_error_map`) plus ``coverage``, the valid fraction of the domain; returns
+    (scores, error map).  An empty domain gives no scores."""
+    domain = np.asarray(domain, bool)
+    valid = np.asarray(valid, bool)
+    if not domain.any():
+        return {}, np.full(domain.shape, np.nan)
+    n = np.where(valid[..., None], est, 0.0)
+    emap = angular_error_map(n, true, domain)
+    st = angular_error_stats(n, true, domain)
+    return {"normal_mean_deg": st["mean"], "normal_median_deg": st["median"],
+            "normal_frac_under_5deg": st["frac_under_5"], "normal_frac_under_10deg": st["frac_under_10"],
+            "coverage": float((domain & valid).sum() / domain.sum())}, emap
+
+
+def albedo_scores(est, true, sel) -> dict:
+    """``albedo_rel_err``: mean ``|est / true - 1|`` with the nominal intensities (no rescaling:
+    shows the inflation by interreflection); ``albedo_rel_err_scaled``:
+    :func:`albedo_relative_error` (one global least-squares scale).  Empty when ``sel`` selects
+    nothing or the estimate is zero there."""
+    sel = np.asarray(sel, bool)
+    if not sel.any() or not np.any(est[sel] > 0):
+        return {}
+    r = est[sel] / np.maximum(true[sel], 1e-6)
+    return {"albedo_rel_err": float(np.mean(np.abs(r - 1))),
+            "albedo_rel_err_scaled": albedo_relative_error(est, true, sel)}
+
+
+def largest_component(mask: np.ndarray) -> np.ndarray:
+    """The largest 4-connected component of ``mask``."""
+    from scipy import ndimage
+
+    lab, n = ndimage.label(mask)
+    if n <= 1:
+        return np.asarray(mask, bool).copy()
+    sizes = ndimage.sum(mask, lab, index=np.arange(1, n + 1))
+    return lab == (1 + int(np.argmax(sizes)))
+
+
+def height_scores(normals, z_true, domain, pixel_size, integrate=None) -> tuple[dict, np.ndarray]:
+    """Integrate ``normals`` on the largest component of ``domain`` (pixels with ``N_z > 1e-3``)
+    with ``integrate`` (a surface-integration method of :mod:`pbrbench.infer.integration`, called
+    as ``integrate(normals, mask=..., pixel_size=...)``; default its ``lsq``); height RMSE vs
+    ``z_true`` after removing the free offset (:func:`height_rmse`, world units) and relative to
+    the true height range.  Returns (scores, height map with its mean removed, NaN outside)."""
+    if integrate is None:
+        from pbrbench.infer.integration import METHODS
+
+        integrate = METHODS["lsq"]
+    dom = largest_component(np.asarray(domain, bool) & (normals[..., 2] > 1e-3))
+    if dom.sum() < 4:
+        return {}, np.full(z_true.shape, np.nan)
+    z = integrate(normals, mask=dom, pixel_size=pixel_size)
+    rmse = height_rmse(z, z_true, dom)
+    rng = float(np.ptp(z_true[dom]))
+    return {"height_rmse": rmse, "height_rmse_rel": rmse / rng if rng > 0 else float("nan")}, \
+        np.where(dom, z - z[dom].mean(), np.nan)
+
+
+METRICS = table(
+    ("normal_mean_deg", "lower", "deg", "mean angle between estimated and true normals over the domain (DiLiGenT)", "normal_scores"),
+    ("normal_median_deg", "lower", "deg", "median angle between estimated and true normals", "normal_scores"),
+    ("normal_frac_under_5deg", "higher", "fraction", "fraction of the domain with an angular error below 5 degrees", "normal_scores"),
+    ("normal_frac_under_10deg", "higher", "fraction", "fraction of the domain with an angular error below 10 degrees", "normal_scores"),
+    ("coverage", "higher", "fraction", "fraction of the domain where the method returned a valid normal", "normal_scores"),
+    ("albedo_rel_err", "lower", "fraction", "mean |albedo_est / albedo - 1| with the nominal source intensities", "albedo_scores"),
+    ("albedo_rel_err_scaled", "lower", "fraction", "relative albedo error after one global least-squares scale", "albedo_scores"),
+    ("height_rmse", "lower", "world units", "height RMSE after removing the free offset", "height_scores"),
+    ("height_rmse_rel", "lower", "fraction", "height RMSE relative to the true height range", "height_scores"),
+)

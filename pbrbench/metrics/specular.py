@@ -17,8 +17,9 @@ import numpy as np
 from scipy import ndimage
 
 from pbrbench.checks import as_float_array, check_finite, check_mask, check_method
+from pbrbench.metrics.table import table
 
-__all__ = ["specular_mask_from_twin", "mask_iou", "removal_errors", "REFERENCES"]
+__all__ = ["specular_scores", "METRICS", "specular_mask_from_twin", "mask_iou", "removal_errors", "REFERENCES"]
 
 REFERENCES = ("peak", "local", "absolute")
 
@@ -110,3 +111,28 @@ def removal_errors(removed, diffuse_only, mask, *, ring: int = 3, valid=None) ->
         out[f"{name}_rmse"] = rmse
         out[f"{name}_rel"] = rmse / ref if ref > 0 else float("nan")
     return out
+
+
+def specular_scores(removed, diffuse_only, true_mask, valid, *, detected=None) -> dict[str, float]:
+    """The specular task's scores of one estimate: ``inside_rel`` and ``ring_rel`` of
+    :func:`removal_errors` (when defined), ``image_rel_rmse`` (relative RMS error vs the twin over
+    ``valid``) and, when the detected mask is given, ``mask_iou``."""
+    sc = removal_errors(removed, diffuse_only, true_mask, valid=valid)
+    out = {k: v for k, v in sc.items() if k in ("inside_rel", "ring_rel") and np.isfinite(v)}
+    if detected is not None:
+        out["mask_iou"] = mask_iou(detected, true_mask)
+    obj = np.asarray(valid, bool)
+    twin = np.asarray(diffuse_only, np.float64)
+    d = (np.asarray(removed, np.float64) - twin)[obj]
+    ref = float(np.sqrt(np.mean(twin[obj] ** 2))) if obj.any() else 0.0
+    if ref > 0:
+        out["image_rel_rmse"] = float(np.sqrt(np.mean(d * d))) / ref
+    return out
+
+
+METRICS = table(
+    ("mask_iou", "higher", "fraction", "intersection over union of the detected and the true specular mask", "specular_scores"),
+    ("inside_rel", "lower", "fraction", "relative RMS error vs the diffuse-only twin inside the true specular mask", "specular_scores"),
+    ("ring_rel", "lower", "fraction", "relative RMS error vs the twin in a 3-pixel ring around the true mask", "specular_scores"),
+    ("image_rel_rmse", "lower", "fraction", "relative RMS error vs the twin over the whole object", "specular_scores"),
+)

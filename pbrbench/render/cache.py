@@ -27,11 +27,10 @@ from pbrbench.scene.spec import SceneSpec
 
 
 def default_root() -> Path:
-    env = os.environ.get("PBRBENCH_CACHE")
-    if env:
-        return Path(env)
-    xdg = os.environ.get("XDG_CACHE_HOME")
-    return Path(xdg) / "pbrbench" if xdg else Path.home() / ".cache" / "pbrbench"
+    """The ``cache`` setting (:class:`pbrbench.settings.Settings`)."""
+    from pbrbench.settings import Settings
+
+    return Path(Settings.from_env().cache)
 
 
 def _sha256(path: Path) -> str:
@@ -60,6 +59,17 @@ class RenderCache:
 
     def entry_dir(self, key: str) -> Path:
         return self.root / "gt" / key[:2] / key
+
+    def meta(self, key: str) -> dict | None:
+        """The metadata of a complete entry without reading its images (None when the entry is
+        absent or its metadata unreadable; :meth:`get` still verifies the images' checksum)."""
+        d = self.entry_dir(key)
+        if not ((d / "gt.json").is_file() and (d / "gt.exr").is_file()):
+            return None
+        try:
+            return json.loads((d / "gt.json").read_text())
+        except (OSError, ValueError):
+            return None
 
     def get(self, key: str) -> GroundTruth | None:
         """The cached ground truth, or None if absent or not intact (then it is removed)."""

@@ -1,13 +1,27 @@
-"""Quality presets: how a scene's nominal resolution and samples per pixel are scaled.
+"""Quality profiles: everything that differs between a draft, a standard and a high run.
 
-A scene file states its ``standard`` settings.  ``draft`` (CI: seconds per scene) divides the
-resolution by 4 (at least 32 px) and the samples by 16 (at least 4); ``high`` keeps the
-resolution and multiplies the samples by 4.  Every ground truth records its preset.
+A scene file states its ``standard`` render settings.  A profile scales them and says how much
+of the benchmark to run:
+
+* ``res_scale`` / ``spp_scale`` (with floors ``min_res``, ``min_spp``): render resolution and
+  samples per pixel;
+* ``short_subset``: tasks use their short, representative lists of scene families
+  (:meth:`Quality.pick`) instead of all of them;
+* ``sweep_keep``: how many values of each swept family to keep (first and last included,
+  evenly spaced; ``None`` keeps the whole sweep);
+* ``algorithm_options``: per ``"task/algorithm"`` budget options (fewer iterations, a fixed
+  polynomial degree) merged into the algorithm's options by
+  :meth:`pbrbench.registry.Algorithm.options_for`.
+
+``draft`` is the CI setting (seconds per scene), ``standard`` the benchmark, ``high`` four times the
+samples.  Every ground truth and every run records its profile's name.  No code compares a
+profile's name: it asks the profile.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from types import MappingProxyType
 
 from pbrbench.errors import UserError
 
@@ -19,6 +33,10 @@ class Quality:
     spp_scale: float
     min_res: int = 32
     min_spp: int = 4
+    short_subset: bool = False
+    sweep_keep: int | None = None
+    algorithm_options: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
+    description: str = ""
 
     def resolution(self, res: tuple[int, int]) -> tuple[int, int]:
         w, h = res
@@ -30,16 +48,66 @@ class Quality:
     def spp(self, spp: int) -> int:
         return max(min(self.min_spp, spp), round(spp * self.spp_scale))
 
+    def pick(self, full, short) -> tuple:
+        """``short`` (a task's representative subset) when this profile runs short subsets and
+        ``short`` is not empty, else ``full``."""
+        return tuple(short) if self.short_subset and short else tuple(full)
 
-PRESETS = {
-    "draft": Quality("draft", 0.25, 1 / 16),
-    "standard": Quality("standard", 1.0, 1.0),
-    "high": Quality("high", 1.0, 4.0),
+    def keep(self, values: list, extra: int = 0) -> list:
+        """``sweep_keep + extra`` values spread evenly over ``values`` (all when no limit)."""
+        if self.sweep_keep is None:
+            return list(values)
+        return subsample(values, self.sweep_keep + extra)
+
+    def __reduce__(self):  # MappingProxyType does not pickle
+        return (_rebuild, (self.name,))
+
+
+def subsample(values: list, keep: int) -> list:
+    """``keep`` items spread evenly over ``values`` (first and last included), order kept."""
+    n = len(values)
+    if keep >= n:
+        return list(values)
+    if keep <= 1:
+        return [values[n // 2]]
+    idx = sorted({round(i * (n - 1) / (keep - 1)) for i in range(keep)})
+    return [values[i] for i in idx]
+
+
+def _frozen(d: dict) -> MappingProxyType:
+    return MappingProxyType({k: MappingProxyType(dict(v)) for k, v in d.items()})
+
+
+PRESETS: dict[str, Quality] = {
+    "draft": Quality(
+        "draft", 0.25, 1 / 16, short_subset=True, sweep_keep=2,
+        # the regression run must stay short: iteration budgets capped, Mitsunaga-Nayar with a
+        # fixed degree instead of its held-out degree search (about 20x slower)
+        algorithm_options=_frozen({
+            "sfs/horn1989": {"max_iter": 300}, "sfs/horn1989+estimated_light": {"max_iter": 300},
+            "sfs/tsai_shah1994": {"max_iter": 200}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 200},
+            "hdr/mitsunaga1999": {"degree": 5},
+        }),
+        description="CI: resolution / 4 (at least 32 px), spp / 16, short scene lists, two values per sweep"),
+    "standard": Quality("standard", 1.0, 1.0, description="the benchmark: the scene files' own settings"),
+    "high": Quality("high", 1.0, 4.0, description="standard resolution, 4x the samples"),
 }
 
 
-def get_quality(name: str) -> Quality:
+def _rebuild(name: str) -> Quality:
+    return PRESETS[name]
+
+
+def get_quality(name) -> Quality:
+    """The profile named ``name`` (a :class:`Quality` passes through)."""
+    if isinstance(name, Quality):
+        return name
     try:
         return PRESETS[name]
-    except KeyError:
+    except (KeyError, TypeError):
         raise UserError(f"--quality {name!r} is not known; choose one of {', '.join(PRESETS)}") from None
+
+
+def names() -> list[str]:
+    """Profile names, for command-line choices."""
+    return list(PRESETS)

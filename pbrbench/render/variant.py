@@ -2,7 +2,8 @@
 
 Order of preference:
 
-1. an explicit variant (``--variant`` or the ``PBRBENCH_VARIANT`` environment variable);
+1. an explicit variant (``--variant``, else the ``variant`` setting, ``PBRBENCH_VARIANT``:
+   :class:`pbrbench.settings.Settings`);
 2. ``cuda_ad_rgb`` if a CUDA device works (probed through the driver API with ctypes, which
    cannot crash the process);
 3. ``llvm_ad_rgb`` if a libLLVM of version >= 16 is found; ``DRJIT_LIBLLVM_PATH`` is then set to
@@ -91,14 +92,31 @@ def llvm_major(path: str) -> int | None:
         return None
 
 
+_PREFERRED: dict = {}
+
+
+def configure(settings) -> None:
+    """Use ``settings`` (variant, llvm_search, no_cuda) for this process's variant choice; call it
+    before the first render (the command line does, with the settings it resolved)."""
+    _PREFERRED["settings"] = settings
+
+
+def _settings():
+    s = _PREFERRED.get("settings")
+    if s is None:
+        from pbrbench.settings import Settings
+
+        s = Settings.from_env()
+    return s
+
+
 def find_llvm(search_dirs=None) -> tuple[str | None, list[tuple[str, int | None]]]:
-    """Best libLLVM >= 16 in ``search_dirs`` (or ``PBRBENCH_LLVM_SEARCH``, or the system dirs).
+    """Best libLLVM >= 16 in ``search_dirs`` (or the ``llvm_search`` setting, or the system dirs).
 
     Returns ``(path or None, [(candidate, major), ...])``.
     """
     if search_dirs is None:
-        env = os.environ.get("PBRBENCH_LLVM_SEARCH")
-        search_dirs = env.split(os.pathsep) if env else DEFAULT_LLVM_DIRS
+        search_dirs = _settings().llvm_search or DEFAULT_LLVM_DIRS
     cands: list[str] = []
     for d in search_dirs:
         cands += sorted(glob.glob(os.path.join(d, "libLLVM*.so*")))
@@ -119,7 +137,7 @@ def find_llvm(search_dirs=None) -> tuple[str | None, list[tuple[str, int | None]
 
 def cuda_available() -> bool:
     """True when the CUDA driver loads and reports at least one device (no crash possible)."""
-    if os.environ.get("PBRBENCH_NO_CUDA"):
+    if _settings().no_cuda:
         return False
     for name in ("libcuda.so.1", "libcuda.so", "nvcuda.dll"):
         try:
@@ -141,7 +159,7 @@ def choose_variant(explicit: str | None = None) -> VariantChoice:
 
     Must be called before ``import drjit`` / ``import mitsuba``.
     """
-    explicit = explicit or os.environ.get("PBRBENCH_VARIANT") or None
+    explicit = explicit or _settings().variant or None
     user_llvm = os.environ.get("DRJIT_LIBLLVM_PATH")
     notes = []
     llvm_path = None

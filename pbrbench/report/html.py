@@ -66,7 +66,7 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None) -
         ti = info.get(task, {})
         metric = ti.get("headline_metric") or sorted({s["metric"] for s in by_task[task]})[0]
         rows = [s for s in by_task[task] if s["metric"] == metric]
-        better = ti.get("headline_better") or (rows[0]["better"] if rows else "lower")
+        better = rows[0]["better"] if rows else "lower"
         order = ti.get("conditions") or ["local", "area", "global"]
         conds = sorted({s["condition"] for s in rows}, key=lambda c: _cond_sort_key(c, list(order)))
         alg_order = ti.get("algorithms") or []
@@ -181,7 +181,7 @@ def history_figures(store, run_id: str, info: dict, quality: str) -> list[dict]:
                   for a in algs}
         marks = [runs.index(run_id)] if run_id in runs else []
         png = history_png(f"{task}: {metric} (mean over scenes and conditions; {quality})", runs, series,
-                          ylabel=f"{metric} ({ti.get('headline_better', 'lower')} is better)", marks=marks)
+                          ylabel=metric, marks=marks)
         out.append({"task": task, "metric": metric, "n_runs": len(runs),
                     "src": "data:image/png;base64," + base64.b64encode(png).decode("ascii")})
     return out
@@ -197,17 +197,29 @@ def render_html(context: dict) -> str:
     return env.get_template("report.html").render(**context)
 
 
-def build_context(store, run_id: str, *, run_dir: Path, baselines: dict | None = None) -> dict:
-    from pbrbench.bench import regress
+def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
+    """(task, algorithm, condition) -> "regression" / "improvement", from a stored comparison."""
+    out: dict[tuple[str, str, str], str] = {}
+    if not comparison:
+        return out
+    for ch in comparison.get("improvements", []):
+        out.setdefault((ch["task"], ch["algorithm"], ch["condition"]), "improvement")
+    for ch in comparison.get("regressions", []):
+        out[(ch["task"], ch["algorithm"], ch["condition"])] = "regression"
+    return out
 
+
+def build_context(store, run_id: str, *, run_dir: Path) -> dict:
+    """Everything the template shows, read from ``store`` (a :class:`pbrbench.bench.store.Store`)
+    and the run's figure files; nothing is recomputed."""
     run = store.get_run(run_id)
     if run is None:
         raise KeyError(run_id)
     scores = [s for s in store.scores(run_id) if s["task"] != "perf"]
     perf = [s for s in store.scores(run_id) if s["task"] == "perf"]
     info = run["config"].get("task_info", {})
-    comparison = regress.compare(scores, baselines) if baselines else None
-    marks = regress.markers(comparison) if comparison else {}
+    comparison = run.get("comparison")
+    marks = markers(comparison)
     heads = headline_tables(scores, info, marks)
     tables = metric_tables(scores)
     figures = load_figures(run_dir)
@@ -232,7 +244,7 @@ def build_context(store, run_id: str, *, run_dir: Path, baselines: dict | None =
     return {
         "run": run, "meta_rows": meta_rows, "headlines": heads, "tasks": tasks, "ground_truths": gts,
         "history": history_figures(store, run_id, info, run["quality"]),
-        "comparison": comparison, "baseline_quality": (baselines or {}).get("quality"),
+        "comparison": comparison, "baseline_quality": (comparison or {}).get("baseline_quality"),
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf,
     }
 
@@ -246,11 +258,11 @@ def _job_errors(errors: dict[str, str]) -> list[dict]:
     return out
 
 
-def write_report(store, run_id: str, *, out_dir: str | Path, baselines: dict | None = None) -> Path:
+def write_report(store, run_id: str, *, out_dir: str | Path) -> Path:
     """Write ``<out_dir>/index.html`` for ``run_id`` and return its path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    html = render_html(build_context(store, run_id, run_dir=out_dir, baselines=baselines))
+    html = render_html(build_context(store, run_id, run_dir=out_dir))
     p = out_dir / "index.html"
     tmp = p.with_name("index.html.tmp")
     tmp.write_text(html, encoding="utf-8")

@@ -2,7 +2,7 @@
 
 A bad file raises :class:`~pbrbench.errors.SceneError` whose message names the file, the key
 path and the reason, with a hint where one helps, e.g.
-``scenes/x.toml: lights[1].drection: unknown key (did you mean 'direction'?)``.
+``x.toml: lights[1].drection: unknown key (did you mean 'direction'?)``.
 """
 
 from __future__ import annotations
@@ -21,12 +21,15 @@ from pydantic import BaseModel, ValidationError
 from pbrbench.errors import SceneError
 from pbrbench.scene import spec as S
 
-SCENES_DIR = Path(__file__).resolve().parents[2] / "scenes"
+def scenes_dir(directory: str | os.PathLike | None = None) -> Path:
+    """Directory of the scene library: ``directory``, else the ``scenes`` setting
+    (:class:`pbrbench.settings.Settings`: ``PBRBENCH_SCENES`` or the library shipped in the
+    package, ``pbrbench/scene/library``)."""
+    if directory is not None:
+        return Path(directory)
+    from pbrbench.settings import Settings
 
-
-def scenes_dir() -> Path:
-    """Directory of the scene library (``PBRBENCH_SCENES`` overrides)."""
-    return Path(os.environ.get("PBRBENCH_SCENES", SCENES_DIR))
+    return Path(Settings.from_env().scenes)
 
 
 # ------------------------------------------------------------------- error formatting
@@ -228,7 +231,7 @@ def parse_file(path: str | Path) -> dict:
         with open(p, "rb") as f:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see scenes/README.md)") from None
+        raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see pbrbench/scene/library/README.md)") from None
     except UnicodeDecodeError:
         raise SceneError(f"{path}: not a UTF-8 text file; scene files are TOML") from None
 
@@ -258,14 +261,14 @@ def load_scene_file(path: str | Path) -> list[S.SceneSpec]:
     return [validate_doc(doc, str(path), str(Path(path).parent))]
 
 
-def library_files() -> list[Path]:
-    return sorted(scenes_dir().glob("*.toml"))
+def library_files(directory: str | os.PathLike | None = None) -> list[Path]:
+    return sorted(scenes_dir(directory).glob("*.toml"))
 
 
-def load_library() -> dict[str, S.SceneSpec]:
+def load_library(directory: str | os.PathLike | None = None) -> dict[str, S.SceneSpec]:
     """Every scene of the library by name (sweeps expanded)."""
     out: dict[str, S.SceneSpec] = {}
-    for f in library_files():
+    for f in library_files(directory):
         for s in load_scene_file(f):
             if s.name in out:
                 raise SceneError(f"{f}: name: {s.name!r} is also used by {out[s.name].source}; scene names must be unique")
@@ -273,7 +276,7 @@ def load_library() -> dict[str, S.SceneSpec]:
     return out
 
 
-def resolve(names_or_paths: list[str]) -> list[S.SceneSpec]:
+def resolve(names_or_paths: list[str], directory: str | os.PathLike | None = None) -> list[S.SceneSpec]:
     """Scene names, family names (a file stem, expanding its sweep) or paths -> specs."""
     out: list[S.SceneSpec] = []
     lib = None
@@ -281,11 +284,11 @@ def resolve(names_or_paths: list[str]) -> list[S.SceneSpec]:
         if item.endswith(".toml") or os.sep in item:
             out += load_scene_file(item)
             continue
-        stem_file = scenes_dir() / f"{item}.toml"
+        stem_file = scenes_dir(directory) / f"{item}.toml"
         if stem_file.is_file():
             out += load_scene_file(stem_file)
             continue
-        lib = lib if lib is not None else load_library()
+        lib = lib if lib is not None else load_library(directory)
         if item in lib:
             out.append(lib[item])
             continue

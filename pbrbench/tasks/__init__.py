@@ -1,24 +1,32 @@
-"""Benchmark tasks, one module each; :data:`REGISTRY` maps task names to instances.
+"""Benchmark tasks, one module each (``pbrbench/tasks/<name>.py`` defining ``TASK``).
 
-Modules are imported lazily by :func:`get_tasks` so a task whose inference module is missing
-does not break the others.
+Task modules are discovered: a new module with a ``TASK`` is a new task, with no list to edit.
 """
 
 from __future__ import annotations
 
 import importlib
+import pkgutil
 
 from pbrbench.errors import UserError
 
-TASK_MODULES = ("photometric_stereo", "lightness", "hdr", "sfs", "specular")
+
+def task_names() -> list[str]:
+    """Names of the task modules of this package, in a fixed order (the chapter's order first)."""
+    import pbrbench.tasks as pkg
+
+    found = [m.name for m in pkgutil.iter_modules(pkg.__path__) if not m.name.startswith("_") and m.name != "base"]
+    order = ("photometric_stereo", "lightness", "hdr", "sfs", "specular", "interreflection")
+    return sorted(found, key=lambda n: (order.index(n) if n in order else len(order), n))
 
 
 def get_tasks(names=None) -> dict:
-    names = list(names) if names else list(TASK_MODULES)
+    """Task instances by name (all when ``names`` is empty)."""
+    known = task_names()
+    names = list(names) if names else known
     out = {}
     for n in names:
-        if n not in TASK_MODULES:
-            raise UserError(f"--tasks: unknown task {n!r}; choose from {', '.join(TASK_MODULES)}")
-        mod = importlib.import_module(f"pbrbench.tasks.{n}")
-        out[n] = mod.TASK
+        if n not in known:
+            raise UserError(f"--tasks: unknown task {n!r}; choose from {', '.join(known)}")
+        out[n] = importlib.import_module(f"pbrbench.tasks.{n}").TASK
     return out

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 import zlib
 
 import numpy as np
@@ -17,14 +18,6 @@ import numpy as np
 from pbrbench.tasks.base import Job, Score
 
 # ------------------------------------------------------------------------------- scene lists
-
-
-def families_for(task, quality: str) -> tuple[str, ...]:
-    """The task's families at ``quality``: its ``draft_families`` at draft quality (a short,
-    representative subset that keeps the draft benchmark within its time budget), else all."""
-    if quality == "draft" and getattr(task, "draft_families", None):
-        return tuple(task.draft_families)
-    return tuple(task.families)
 
 
 def family_scenes(family: str) -> list:
@@ -55,17 +48,6 @@ def sweep_value(spec, key: str):
             except ValueError:
                 return v
     return None
-
-
-def subsample(values: list, keep: int) -> list:
-    """``keep`` items spread evenly over ``values`` (first and last included), order kept."""
-    n = len(values)
-    if keep >= n:
-        return list(values)
-    if keep <= 1:
-        return [values[n // 2]]
-    idx = sorted({round(i * (n - 1) / (keep - 1)) for i in range(keep)})
-    return [values[i] for i in idx]
 
 
 # ----------------------------------------------------------------------------- light vectors
@@ -237,29 +219,80 @@ def profile_plot(x, series: dict, xlabel: str, ylabel: str, **extra) -> dict:
 
 
 class ScoreBook:
-    """Collects :class:`Score` records for one job (scene hash and condition filled in).
+    """Collects :class:`Score` records for one job (scene hash and condition filled in); the
+    direction and unit of each metric come from :data:`pbrbench.metrics.METRICS`.
 
     ``scene_label`` replaces the job's scene name in the scores when one ground truth holds
     several cases (e.g. ``sfs_sphere:oblique`` for light 1 of the light set of ``sfs_sphere``).
     """
 
-    def __init__(self, job: Job, scene_hash: str, versions: dict[str, str] | None = None,
-                 scene_label: str | None = None):
+    def __init__(self, job: Job, scene_hash: str, algorithms=(), scene_label: str | None = None):
         self.job = job
         self.scene_label = scene_label or job.scene
         self.scene_hash = scene_hash
-        self.versions = versions or {}
+        self.versions = {a.name: a.full_version for a in algorithms}
         self.scores: list[Score] = []
 
-    def add(self, algorithm: str, metric: str, value, seconds: float, better: str = "lower") -> None:
-        self.scores.append(Score(task=self.job.task, scene=self.scene_label, scene_hash=self.scene_hash,
-                                 condition=self.job.condition, algorithm=algorithm,
-                                 algorithm_version=self.versions.get(algorithm, "1"), metric=metric,
-                                 value=float(value), seconds=float(seconds), better=better))
+    def add(self, algorithm: str, values: dict, seconds: float) -> None:
+        """One score per ``values`` item (metric name -> value)."""
+        from pbrbench.metrics import metric
 
-    def add_all(self, algorithm: str, values: dict, seconds: float, directions: dict[str, str]) -> None:
-        for k, v in values.items():
-            self.add(algorithm, k, v, seconds, directions.get(k, "lower"))
+        for name, value in values.items():
+            m = metric(name)
+            self.scores.append(Score(task=self.job.task, scene=self.scene_label, scene_hash=self.scene_hash,
+                                     condition=self.job.condition, algorithm=algorithm,
+                                     algorithm_version=self.versions.get(algorithm, ""), metric=name,
+                                     value=float(value), seconds=float(seconds), better=m.better, unit=m.unit))
+
+
+def one_line(exc: BaseException) -> str:
+    """``TypeName: message`` on one line (for a failed algorithm)."""
+    msg = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {msg}"[:300]
+
+
+def call(alg, *args, quality=None, check=None, **kwargs):
+    """Run algorithm ``alg`` (a registry entry) and check its output.
+
+    Returns ``(output, seconds, error)``: ``error`` is None, or the one-line reason when the
+    algorithm raised or ``check(output)`` refused it (``check`` converts the output to the task's
+    form and raises ``ValueError`` when it is unusable).  Any exception of the algorithm is
+    caught: a failing algorithm is scored as failed, the job goes on.
+    """
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out = alg(*args, quality=quality, **kwargs)
+        seconds = time.perf_counter() - t0
+        if check is not None:
+            out = check(out)
+        return out, seconds, None
+    except Exception as e:  # noqa: BLE001 - a user's algorithm may raise anything
+        return None, time.perf_counter() - t0, one_line(e)
+
+
+def check_array(a, name: str, shape: tuple, *, where=None) -> np.ndarray:
+    """``a`` as a real float64 array of ``shape`` with finite values (inside ``where``); raises
+    ``ValueError`` naming the output otherwise."""
+    from pbrbench.checks import as_float_array, check_finite
+
+    arr = as_float_array(a, name)
+    if arr.shape != tuple(shape):
+        raise ValueError(f"{name}: returned shape {arr.shape}, expected {tuple(shape)}")
+    check_finite(arr, name, where=where)
+    return arr
+
+
+def attribute(out, name: str, index: int | None = None, default=None):
+    """``out.name``, else ``out[name]`` (a dict), else ``out[index]`` (a tuple), else ``default``."""
+    if hasattr(out, name):
+        return getattr(out, name)
+    if isinstance(out, dict):
+        return out.get(name, default)
+    if isinstance(out, (tuple, list)) and index is not None and index < len(out):
+        return out[index]
+    return default
 
 
 class Timer:

@@ -1,19 +1,23 @@
 """What a benchmark task is: scenes, inputs made from ground truth, algorithms, metrics, conditions.
 
-A task module ``pbrbench/tasks/<name>.py`` defines a subclass of :class:`Task` and registers an
-instance in :data:`pbrbench.tasks.REGISTRY` (see ``pbrbench/tasks/__init__.py``).
+A task module ``pbrbench/tasks/<name>.py`` defines a subclass of :class:`Task` and an instance
+``TASK`` (discovered by :func:`pbrbench.tasks.get_tasks`).
 
-The runner (``pbrbench.bench``) asks a task for its :class:`Job` list, makes sure the ground
-truths each job needs are rendered (render cache), calls :meth:`Task.run_job` (possibly in a
-worker process, so jobs are pure functions of their inputs), and stores the returned
-:class:`Score` records; figures (small image arrays and plot data) go into the run's report.
+The runner (:mod:`pbrbench.bench`) asks a task for its :class:`Job` list at a quality profile,
+makes sure the ground truths each job needs are rendered (render cache), and calls
+:meth:`Task.run_job` (possibly in a worker process, so jobs are pure functions of their inputs)
+with the task's algorithms from the registry (:mod:`pbrbench.registry`).  A task never branches
+on an algorithm's name: it calls every algorithm it is given with the task's calling convention
+(``docs/adding.md``), checks what comes back, and scores it with the functions of
+:mod:`pbrbench.metrics`, whose tables give each metric its direction and unit.  An algorithm that
+raises or returns something unusable is scored as ``failed`` with its message; the job goes on.
 
 Light-transport conditions (the columns of the report's headline table):
 
-* ``local``  — direct light from distant sources: the local shading model's own assumptions;
-* ``area``   — area / nearby sources (distant-source model violated);
-* ``global`` — full interreflection (global illumination);
-plus, where a task needs it, noise levels appended as ``<condition>+noise<level>`` .
+* ``local``  -- direct light from distant sources: the local shading model's own assumptions;
+* ``area``   -- area / nearby sources (distant-source model violated);
+* ``global`` -- full interreflection (global illumination);
+plus, where a task needs it, modifiers appended as ``<condition>+noise<level>`` etc.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ CONDITIONS = ("local", "area", "global")
 
 @dataclass(frozen=True)
 class Job:
-    """One unit of work: one algorithm family on one scene under one condition."""
+    """One unit of work: every algorithm of a task on one scene under one condition."""
 
     task: str
     scene: str                       # SceneSpec name (ground truth needed)
@@ -47,7 +51,10 @@ class Job:
 
 @dataclass(frozen=True)
 class Score:
-    """One number: what was measured, on what, by which algorithm, and how long it took."""
+    """One number: what was measured, on what, by which algorithm, and how long it took.
+
+    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated).
+    """
 
     task: str
     scene: str
@@ -59,6 +66,8 @@ class Score:
     value: float
     seconds: float
     better: str = "lower"            # "lower" or "higher": the direction of improvement
+    unit: str = ""
+    uncertainty: float = float("nan")
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -71,7 +80,8 @@ class JobResult:
     ``images``: name -> (H, W) or (H, W, 3) float array (already display-ready in [0, 1], or
     linear radiance flagged by a name starting with "linear:"); ``error_maps``: name -> (H, W)
     float array (shown with a colour bar); ``plots``: name -> dict of plot data
-    (``{"x": [...], "series": {label: [...]}, "xlabel": str, "ylabel": str}``).
+    (``{"x": [...], "series": {label: [...]}, "xlabel": str, "ylabel": str}``); ``failures``:
+    algorithm -> the one-line reason it was scored as failed.
     """
 
     job: Job
@@ -79,22 +89,27 @@ class JobResult:
     images: dict[str, np.ndarray] = field(default_factory=dict)
     error_maps: dict[str, np.ndarray] = field(default_factory=dict)
     plots: dict[str, dict[str, Any]] = field(default_factory=dict)
+    failures: dict[str, str] = field(default_factory=dict)
 
 
 class Task:
-    """Base class; subclasses set the class attributes and implement the two methods."""
+    """Base class; subclasses set the class attributes and implement the three methods."""
 
     name: str = ""
     description: str = ""
-    algorithms: tuple[str, ...] = ()     # includes trivial baselines, e.g. "baseline:flat"
     conditions: tuple[str, ...] = CONDITIONS
     headline_metric: str = ""            # the metric shown in the headline table
-    headline_better: str = "lower"
+    families: tuple[str, ...] = ()       # scene families (library file stems)
+    short_families: tuple[str, ...] = ()  # the representative subset of short quality profiles
 
-    def jobs(self, quality: str) -> list[Job]:
-        """Every job of this task at ``quality``."""
+    def builtin_algorithms(self) -> list:
+        """The task's own :class:`pbrbench.registry.Algorithm` entries (from the methods tables)."""
+        return []
+
+    def jobs(self, quality) -> list[Job]:
+        """Every job of this task at the quality profile ``quality``."""
         raise NotImplementedError
 
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0) -> JobResult:
-        """Run all algorithms of ``job`` on ground truths ``gts`` (scene name -> GroundTruth)."""
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        """Run ``algorithms`` on job ``job`` with ground truths ``gts`` (scene name -> GroundTruth)."""
         raise NotImplementedError

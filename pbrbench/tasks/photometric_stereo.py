@@ -1,7 +1,8 @@
-"""Photometric stereo (with surface integration) on the scene library (SCIENCE.md §6).
+"""Photometric stereo (with surface integration) on the scene library.
 
 Inputs: the per-light images of a scene's light set (grey = channel mean) and the nominal source
-vectors of its spec (direction x irradiance, camera frame).  Conditions (naming contract):
+vectors of its spec (direction x irradiance, camera frame; ``docs/conventions.md``).  Conditions
+(``docs/conditions.md``):
 
 * ``local``: the ``lightNN.direct`` images of the distant-source scene (the model's assumptions);
 * ``local+noise0.01``: the same plus Gaussian noise of 1 % of the stack's peak;
@@ -9,155 +10,109 @@ vectors of its spec (direction x irradiance, camera frame).  Conditions (naming 
   nominal directions): the distant-source model is violated;
 * ``global``: the ``lightNN.radiance`` images (full interreflection): biased in concavities.
 
-Algorithms: every method of :func:`pbrbench.infer.photometric_stereo.photometric_stereo`, the
-naive baseline (one least-squares solve with every light, shadows included), and -- for the
-height scores -- the four integrators of :func:`pbrbench.infer.integration.integrate_normals`
-applied to the *true* normals (the integration floor, condition ``local`` only).
+Algorithms (from the registry): every method of :data:`pbrbench.infer.photometric_stereo.METHODS`
+and any plugin, called as ``fn(images, lights, *, mask)`` with ``images`` (K, H, W) float64 and
+``lights`` (K, 3), returning a :class:`~pbrbench.infer.photometric_stereo.PhotometricStereoResult`
+or anything with ``normals`` (H, W, 3) and ``albedo`` (H, W) (attributes, dict keys, or a tuple
+``(normals, albedo[, valid])``; normals that are not unit length are normalised, pixels outside
+``valid`` count as invalid estimates); the naive baseline (one least-squares solve with every light,
+shadows included); and, as floors for the height scores, the integration methods of
+:data:`pbrbench.infer.integration.METHODS` applied to the *true* normals (condition ``local``).
 
 Evaluation domain (algorithm independent): the ground-truth mask eroded by one pixel, restricted
 to pixels lit by at least 3 lights in the job's own direct renders (a pixel seen by fewer has no
 unique normal; "lit" = direct shading above 5 % of the light's peak, i.e. not grazing), whose lit
-directions are not coplanar (three coplanar sources leave the normal undetermined).  Angular
-errors (:mod:`pbrbench.metrics.normals`, DiLiGenT protocol) are scored over the whole domain, an
-invalid estimate counting 90 degrees; ``coverage`` is the valid fraction of the domain.  Albedo:
-the estimate times pi (radiance images carry ``rho E cos / pi``) against the albedo AOV, absolute
-(``albedo_rel_err``: shows the inflation by interreflection) and after one best global scale
-(``albedo_rel_err_scaled``).  Height: the estimated normals integrated by ``lsq`` on the largest
-connected part of the domain, RMSE after the free offset (world units, ``height_rmse``) and
-relative to the true height range (``height_rmse_rel``).
+directions are not coplanar (three coplanar sources leave the normal undetermined).  Scores: see
+:func:`pbrbench.metrics.normals.normal_scores`, ``albedo_scores`` (the estimate times pi against
+the albedo AOV: radiance images carry ``rho E cos / pi``) and ``height_scores`` (the estimated
+normals integrated by ``lsq`` on the largest connected part of the domain).
 
 Plot jobs (no scores): ``albedo_sweep`` per swept family (error vs albedo, direct vs global
-renders, across the ``[sweep]`` of albedos: the concave cup and groove show the interreflection
-bias, the convex shapes are the control) and ``reflex`` (on ``groove_reflex_*``: the radiosity
-``pi L`` across the groove for each albedo, and ``B / albedo`` against the local model).
-
-Draft quality (the regression run) uses ``draft_families`` (``sphere_5lights``, ``ps_groove``) with
-the first and last albedo of each sweep (``sweep_keep``), and ``groove_reflex_parallel`` with
-three albedos.
+renders: the concave cup and groove show the interreflection bias, the convex shapes are the
+control) and ``reflex`` (on ``groove_reflex_*``: the radiosity ``pi L`` across the groove for each
+albedo, and ``B / albedo`` against the local model).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer.integration import integrate_normals
-from pbrbench.infer.photometric_stereo import METHODS as PS_METHODS
-from pbrbench.infer.photometric_stereo import photometric_stereo
-from pbrbench.metrics.normals import (
-    albedo_relative_error,
-    angular_error_map,
-    angular_error_stats,
-    height_rmse,
-)
+from pbrbench.metrics.normals import albedo_scores, height_scores, normal_scores
+from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
 
 FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove")
 REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
 NOISE = 0.01
-NAIVE = "baseline:naive_lstsq_all_lights"
-INTEGRATORS = ("lsq", "path", "frankot_chellappa", "dct")
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
-# albedo values kept per swept family, by quality (first and last, then evenly spaced); a
-# quality not listed keeps the whole sweep.  Reflex families keep one more at draft.
-SWEEP_KEEP = {"draft": 2}
-
-DIRECTIONS = {"normal_mean_deg": "lower", "normal_median_deg": "lower", "normal_frac_under_5deg": "higher",
-              "normal_frac_under_10deg": "higher", "coverage": "higher", "albedo_rel_err": "lower",
-              "albedo_rel_err_scaled": "lower", "height_rmse": "lower", "height_rmse_rel": "lower"}
 
 
-def naive_lstsq(images: np.ndarray, lights: np.ndarray, mask: np.ndarray):
-    """The naive baseline: ``g = pinv(V) I`` with every light, shadowed (clamped) ones included.
-
-    Returns ``(normals (H, W, 3), albedo (H, W), valid (H, W))``.
-    """
-    k, h, w = images.shape
-    g = np.linalg.pinv(np.asarray(lights, float)) @ images.reshape(k, -1)  # (3, H*W)
-    g = g.T.reshape(h, w, 3)
-    a = np.linalg.norm(g, axis=-1)
-    valid = mask & (a > 0)
-    n = np.divide(g, a[..., None], out=np.zeros_like(g), where=valid[..., None])
+def result_arrays(out, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(normals (H, W, 3), albedo (H, W), valid (H, W)) from what a photometric-stereo algorithm
+    returned; ``ValueError`` naming the problem when it is unusable.  Normals are renormalised;
+    ``valid`` defaults to the pixels with a finite non-zero normal."""
+    h, w = shape
+    n = C.attribute(out, "normals", 0)
+    a = C.attribute(out, "albedo", 1)
+    if n is None or a is None:
+        raise ValueError("output: return normals (H, W, 3) and albedo (H, W) "
+                         "(a PhotometricStereoResult, a dict or a tuple)")
+    valid = C.attribute(out, "valid", 2)
+    if valid is not None:
+        valid = np.asarray(valid)
+        if valid.shape != (h, w):
+            raise ValueError(f"valid: returned shape {valid.shape}, expected {(h, w)}")
+        valid = valid.astype(bool)
+    n = C.check_array(n, "normals", (h, w, 3), where=valid)
+    a = np.asarray(a)
+    a = C.check_array(a[..., 0] if a.ndim == 3 and a.shape[2] == 1 else a, "albedo", (h, w), where=valid)
+    finite = np.isfinite(n).all(axis=-1)
+    norm = np.linalg.norm(np.where(finite[..., None], n, 0.0), axis=-1)
+    valid = (finite if valid is None else valid) & (norm > 0)
+    # unit normals pass unchanged (bit for bit); others are normalised
+    fix = valid & (np.abs(norm - 1.0) > 1e-6)
+    n = np.where(valid[..., None], n, 0.0)
+    if fix.any():
+        n[fix] /= norm[fix][:, None]
     return n, np.where(valid, a, 0.0), valid
-
-
-def normal_scores(est, true, domain, valid) -> tuple[dict, np.ndarray]:
-    """DiLiGenT angular-error scores over ``domain`` (an invalid estimate scores 90 degrees:
-    :func:`pbrbench.metrics.normals.angular_error_map`) plus ``coverage``, the valid fraction of
-    the domain; returns (scores, error map)."""
-    if not domain.any():
-        return {}, np.full(domain.shape, np.nan)
-    n = np.where(valid[..., None], est, 0.0)
-    emap = angular_error_map(n, true, domain)
-    st = angular_error_stats(n, true, domain)
-    return {"normal_mean_deg": st["mean"], "normal_median_deg": st["median"],
-            "normal_frac_under_5deg": st["frac_under_5"], "normal_frac_under_10deg": st["frac_under_10"],
-            "coverage": float((domain & valid).sum() / domain.sum())}, emap
-
-
-def albedo_scores(est_pi, true, sel) -> dict:
-    """``albedo_rel_err``: mean ``|est / true - 1|`` with the nominal intensities (no rescaling:
-    shows the inflation by interreflection); ``albedo_rel_err_scaled``:
-    :func:`pbrbench.metrics.normals.albedo_relative_error` (one global least-squares scale)."""
-    if not sel.any() or not np.any(est_pi[sel] > 0):
-        return {}
-    r = est_pi[sel] / np.maximum(true[sel], 1e-6)
-    return {"albedo_rel_err": float(np.mean(np.abs(r - 1))),
-            "albedo_rel_err_scaled": albedo_relative_error(est_pi, true, sel)}
-
-
-def largest_component(mask: np.ndarray) -> np.ndarray:
-    from scipy import ndimage
-
-    lab, n = ndimage.label(mask)
-    if n <= 1:
-        return mask.copy()
-    sizes = ndimage.sum(mask, lab, index=np.arange(1, n + 1))
-    return lab == (1 + int(np.argmax(sizes)))
-
-
-def height_scores(normals, z_true, domain, pixel_size, method="lsq") -> tuple[dict, np.ndarray]:
-    """Integrate ``normals`` on the largest component of ``domain``; height RMSE vs ``z_true``
-    after removing the free offset (:func:`pbrbench.metrics.normals.height_rmse`, world units)
-    and relative to the true height range."""
-    dom = largest_component(domain & (normals[..., 2] > 1e-3))
-    if dom.sum() < 4:
-        return {}, np.full(z_true.shape, np.nan)
-    z = integrate_normals(normals, mask=dom, method=method, pixel_size=pixel_size)
-    rmse = height_rmse(z, z_true, dom)
-    rng = float(np.ptp(z_true[dom]))
-    return {"height_rmse": rmse, "height_rmse_rel": rmse / rng if rng > 0 else float("nan")}, \
-        np.where(dom, z - z[dom].mean(), np.nan)
 
 
 class PhotometricStereoTask(Task):
     name = "photometric_stereo"
     description = ("Normals, albedo and height from K images under distant sources (Woodham 1980; "
                    "robust L1); scored on direct, area-source and full-GI renders of the scene library.")
-    algorithms = tuple(PS_METHODS) + (NAIVE,) + tuple(f"integrate:{m}" for m in INTEGRATORS)
     conditions = ("local", f"local+noise{NOISE:g}", "area", "global")
     headline_metric = "normal_mean_deg"
-    headline_better = "lower"
     families = FAMILIES
-    draft_families = ("sphere_5lights", "ps_groove")
+    short_families = ("sphere_5lights", "ps_groove")
     reflex_families = REFLEX
-    draft_reflex_families = ("groove_reflex_parallel",)
-    sweep_keep = SWEEP_KEEP
+    short_reflex_families = ("groove_reflex_parallel",)
+
+    # ------------------------------------------------------------------------- algorithms
+    def builtin_algorithms(self) -> list[Algorithm]:
+        from pbrbench.infer import integration
+        from pbrbench.infer import photometric_stereo as ps
+
+        out = [Algorithm(n, self.name, fn) for n, fn in ps.METHODS.items()]
+        out += [Algorithm(f"baseline:{n}", self.name, fn, kind="baseline") for n, fn in ps.BASELINES.items()]
+        out += [Algorithm(f"integrate:{n}", self.name, fn, kind="floor", conditions=("local",),
+                          description="the true normals integrated by this method: the integration floor")
+                for n, fn in integration.METHODS.items()]
+        return out
 
     # ------------------------------------------------------------------------------ jobs
     def _params(self, spec) -> tuple:
         return (("lights", C.as_param(C.light_vectors(spec))), ("half_width", float(spec.camera.half_width)))
 
-    def jobs(self, quality: str) -> list[Job]:
+    def jobs(self, quality) -> list[Job]:
         out: list[Job] = []
-        draft = quality == "draft"
-        for fam in C.families_for(self, quality):
+        for fam in quality.pick(self.families, self.short_families):
             specs = C.family_scenes(fam)
             if not specs:
                 continue
             twins = {C.sweep_value(s, "albedo"): s for s in C.family_scenes(f"{fam}_area")}
-            if quality in self.sweep_keep:
-                specs = C.subsample(specs, self.sweep_keep[quality])
+            specs = quality.keep(specs)
             for s in specs:
                 if not s.light_set:
                     continue
@@ -172,10 +127,8 @@ class PhotometricStereoTask(Task):
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "albedo_sweep"),) + self._params(specs[-1]),
                                extra_scenes=names[:-1]))
-        for fam in (self.draft_reflex_families if draft else self.reflex_families):
-            specs = C.family_scenes(fam)
-            if quality in self.sweep_keep:
-                specs = C.subsample(specs, self.sweep_keep[quality] + 1)
+        for fam in quality.pick(self.reflex_families, self.short_reflex_families):
+            specs = quality.keep(C.family_scenes(fam), extra=1)
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
@@ -205,17 +158,17 @@ class PhotometricStereoTask(Task):
         independent = np.linalg.det(gram) > 1e-6 * (tr / 3.0) ** 3
         return m & (lit.sum(axis=0) >= 3) & independent & (tr > 0)
 
-    def _run_ps(self, algorithm, images, lights, mask):
-        if algorithm == NAIVE:
-            return naive_lstsq(images, lights, mask)
-        r = photometric_stereo(images, lights, mask=mask, method=algorithm)
-        return r.normals, r.albedo, r.valid
+    @staticmethod
+    def _solve(alg, images, lights, mask, quality):
+        return C.call(alg, images, lights, mask=mask, quality=quality,
+                      check=lambda out: result_arrays(out, images.shape[1:3]))
 
     # ----------------------------------------------------------------------------- run
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0) -> JobResult:
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        algorithms = [a for a in algorithms if a.applies(job.condition)]
         plot = job.param("plot")
         if plot == "albedo_sweep":
-            return self._albedo_sweep(job, gts)
+            return self._albedo_sweep(job, gts, algorithms, quality)
         if plot == "reflex":
             return self._reflex(job, gts)
         gt = gts[job.scene]
@@ -229,57 +182,68 @@ class PhotometricStereoTask(Task):
         alb_true = C.grey(gt["albedo"])
         z_true = -gt["depth"].astype(float)
         px = C.pixel_size(job.param("half_width", 1.0), images.shape[2])
-        book = C.ScoreBook(job, C.scene_hash(gt))
+        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:input (light 0)"] = C.display(images[0])
         res.images["normals: truth"] = C.normals_display(n_true, gt.mask)
-        for alg in tuple(PS_METHODS) + (NAIVE,):
-            with C.Timer() as t:
-                n, a, valid = self._run_ps(alg, images, lights, gt.mask)
+        first = True
+        for alg in algorithms:
+            if alg.kind == "floor":
+                with C.Timer() as t:
+                    hs, z = height_scores(n_true, z_true, domain, px, integrate=lambda *a, _f=alg, **k: _f(*a, **k))
+                book.add(alg.name, hs, t.seconds)
+                if "true height" not in " ".join(res.error_maps):
+                    res.error_maps[f"true height ({alg.name} of the true normals)"] = C.display_map(z)
+                continue
+            out, seconds, err = self._solve(alg, images, lights, gt.mask, quality)
+            if err is not None:
+                book.add(alg.name, {"failed": 1.0}, seconds)
+                res.failures[alg.name] = err
+                continue
+            n, a, valid = out
             sc, emap = normal_scores(n, n_true, domain, valid)
             sc.update(albedo_scores(np.pi * a, alb_true, domain & valid))
             hs, _ = height_scores(n, z_true, domain & valid, px)
             sc.update(hs)
-            book.add_all(alg, sc, t.seconds, DIRECTIONS)
-            res.images[f"normals: {alg}"] = C.normals_display(n, valid)
-            res.error_maps[f"angular error (deg): {alg}"] = C.display_map(emap)
-            if alg == PS_METHODS[0]:
-                res.images[f"albedo x pi: {alg}"] = C.display(np.clip(np.pi * a, 0, 1))
+            book.add(alg.name, sc, seconds)
+            res.images[f"normals: {alg.name}"] = C.normals_display(n, valid)
+            res.error_maps[f"angular error (deg): {alg.name}"] = C.display_map(emap)
+            if first and alg.kind == "method":
+                first = False
+                res.images[f"albedo x pi: {alg.name}"] = C.display(np.clip(np.pi * a, 0, 1))
                 with np.errstate(invalid="ignore", divide="ignore"):
                     rel = np.where(domain & valid, np.pi * a / np.maximum(alb_true, 1e-6) - 1, np.nan)
-                res.error_maps[f"albedo relative error: {alg}"] = C.display_map(rel)
-        if job.condition == "local":
-            for m in INTEGRATORS:
-                with C.Timer() as t:
-                    hs, z = height_scores(n_true, z_true, domain, px, method=m)
-                book.add_all(f"integrate:{m}", hs, t.seconds, DIRECTIONS)
-                if m == "lsq":
-                    res.error_maps["true height (lsq from true normals)"] = C.display_map(z)
+                res.error_maps[f"albedo relative error: {alg.name}"] = C.display_map(rel)
         res.scores = book.scores
         return res
 
     # ---------------------------------------------------------------------------- plots
-    def _albedo_sweep(self, job: Job, gts: dict) -> JobResult:
+    def _albedo_sweep(self, job: Job, gts: dict, algorithms, quality) -> JobResult:
         names = list(job.extra_scenes) + [job.scene]
         names.sort(key=lambda s: C.sweep_value(s, "albedo") or 0.0)
         lights = np.asarray(job.param("lights"), float)
-        alg = PS_METHODS[0]
+        alg = next((a for a in algorithms if a.kind == "method"), None)
+        res = JobResult(job)
+        if alg is None:
+            return res
         xs, series = [], {}
         for name in names:
             gt = gts[name]
             xs.append(C.sweep_value(name, "albedo"))
             domain = self._domain(gt, lights)
             for kind, label in (("direct", "direct (local)"), ("radiance", "full GI (global)")):
-                n, a, valid = self._run_ps(alg, self._stack(gt, kind), lights, gt.mask)
-                sc, _ = normal_scores(n, gt["normals"], domain, valid)
-                al = albedo_scores(np.pi * a, C.grey(gt["albedo"]), domain & valid)
+                out, _, err = self._solve(alg, self._stack(gt, kind), lights, gt.mask, quality)
+                sc, al = {}, {}
+                if err is None:
+                    n, a, valid = out
+                    sc, _ = normal_scores(n, gt["normals"], domain, valid)
+                    al = albedo_scores(np.pi * a, C.grey(gt["albedo"]), domain & valid)
                 series.setdefault(f"angular error, {label}", []).append(sc.get("normal_mean_deg", np.nan))
                 series.setdefault(f"albedo rel. error, {label}", []).append(al.get("albedo_rel_err", np.nan))
         fam = job.scene.split("[")[0]
-        res = JobResult(job)
-        res.plots[f"{fam}: {alg} error vs albedo"] = C.profile_plot(
+        res.plots[f"{fam}: {alg.name} error vs albedo"] = C.profile_plot(
             xs, {k: v for k, v in series.items() if k.startswith("angular")}, "albedo", "mean angular error (deg)")
-        res.plots[f"{fam}: {alg} albedo error vs albedo"] = C.profile_plot(
+        res.plots[f"{fam}: {alg.name} albedo error vs albedo"] = C.profile_plot(
             xs, {k: v for k, v in series.items() if k.startswith("albedo")}, "albedo",
             "mean |albedo_est / albedo - 1|")
         return res

@@ -1,91 +1,116 @@
-"""Shape from one shaded image on the scene library (SCIENCE.md §7).
+"""Shape from one shaded image on the scene library.
 
 Scenes: ``sfs_sphere``, ``sfs_vase``, ``sfs_random`` and their ``*_area`` twins.  Each has a light
 set of two sources (``light00`` along the view, ``light01`` oblique, 45 degrees in x), rendered one
 at a time; each light is a separate case, scored under the scene label ``<scene>:view`` or
 ``<scene>:oblique`` (a scene with a single light in ``lights`` is one case under its own name).
 Input: one grey image (channel mean); the light is the case's nominal source (direction in the
-camera frame; for an area twin ``normalize(center - target)``) and the albedo is the known ``rho E / pi`` (median albedo AOV times
-the nominal irradiance over pi), as every method assumes a known uniform albedo.
+camera frame; for an area twin ``normalize(center - target)``) and the albedo is the known
+``rho E / pi`` (median albedo AOV times the nominal irradiance over pi), as every method assumes a
+known uniform albedo.
 
 Conditions: ``local`` (``direct``), ``local+noise0.01`` (1 % Gaussian noise of the peak),
 ``area`` (the ``*_area`` twin's ``direct``: a nearby rectangle along the nominal direction) and
 ``global`` (``radiance``: interreflection).
 
-Algorithms: every method of :func:`pbrbench.infer.sfs.shape_from_shading` with the known light,
-the same with the light (and albedo) estimated by :func:`pbrbench.infer.sfs.light_from_shading`
-(``<method>+estimated_light``; condition ``local`` only, to keep the run short), and the two
-references that always stand beside them: ``baseline:flat`` (z = 0, normals along the view) and
-``floor:integrate_true_normals`` (the true normals through the same least-squares integrator).
+Algorithms (from the registry), by calling convention (``interface``):
 
-Metrics (:mod:`pbrbench.metrics.sfs`): height RMSE and mean absolute error after removing the
-free offset (world units, ``height_rmse``, ``height_mae``), the same after the best scale
-(``height_rmse_scaled``, ``height_mae_scaled``), RMSE relative to the true height range
-(``height_rmse_rel``), the mean normal angle (``normal_mean_deg``), the convex/concave-ambiguity-
-aware ``height_rmse_flip`` and ``normal_mean_deg_flip`` (the better of ``z`` and ``-z``: under a
-frontal light both give the same image), ``converged`` (1 when the method met its tolerance; the
-only higher-is-better score), ``failed`` (1 when the method raised ``ValueError`` for this input;
-then it has no other score; ``fast_marching`` without a singular point no longer raises but seeds
-the brightest pixels with a warning)
-and, for the light estimate, ``light_error_deg``.  The floor uses the
-SFS methods' own integrator (:func:`pbrbench.metrics.sfs.floor_scores`).
+* main -- every method of :data:`pbrbench.infer.sfs.METHODS` and any plugin, called as
+  ``fn(image, light, *, albedo, mask, pixel_size)`` returning an
+  :class:`~pbrbench.infer.sfs.SFSResult` or anything with ``height`` (H, W) and ``normals``
+  (H, W, 3) (and optionally ``converged``); the same methods with the light and albedo estimated
+  from the image by the ``contour`` estimator (``<method>+estimated_light``, condition ``local``);
+* ``light`` -- the light estimators of :data:`pbrbench.infer.sfs.LIGHT_METHODS`, called as
+  ``fn(image, mask)``, scored by ``light_error_deg`` (condition ``local``);
+* ``reference`` -- ``baseline:flat`` (z = 0, normals along the view) and
+  ``floor:integrate_true_normals`` (the true normals through the SFS methods' own integrator),
+  which score the ground truth directly (:func:`pbrbench.metrics.sfs.flat_baseline`,
+  :func:`pbrbench.metrics.sfs.floor_scores`).
 
-Draft quality uses ``sfs_sphere`` (and its twin) only, with iteration budgets capped
-(``DRAFT_OPTIONS``: horn1989 300, tsai_shah1994 200 iterations).
+Metrics: :mod:`pbrbench.metrics.sfs` (height errors after the free offset and after the best
+scale, relative RMSE, mean normal angle, the convex/concave-ambiguity-aware versions), plus
+``converged`` and ``failed`` (:mod:`pbrbench.metrics.table`).
 """
 
 from __future__ import annotations
 
-import warnings
+import functools
 
 import numpy as np
 
-from pbrbench.infer.sfs import METHODS as SFS_METHODS
-from pbrbench.infer.sfs import light_from_shading, shape_from_shading
-from pbrbench.metrics.sfs import flat_baseline, floor_height, floor_scores, sfs_scores
+from pbrbench.metrics.sfs import flat_baseline, floor_scores, sfs_scores
+from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
 
 FAMILIES = ("sfs_sphere", "sfs_vase", "sfs_random")
 NOISE = 0.01
-FLAT = "baseline:flat"
-FLOOR = "floor:integrate_true_normals"
 EST = "+estimated_light"
-LIGHT_EST = "light_from_shading:contour"
-# iteration budgets at draft quality (the regression run must stay short; standard uses the
-# methods' own defaults)
-DRAFT_OPTIONS = {"horn1989": {"max_iter": 300}, "tsai_shah1994": {"max_iter": 200}}
-DIRECTIONS = {"converged": "higher"}  # every other metric: lower is better
+ESTIMATOR = "contour"
 
 
-def rename(scores: dict, pixel_range: float | None = None) -> dict:
-    """Metric names of :mod:`pbrbench.metrics.sfs` -> the task's score names."""
-    names = {"rmse": "height_rmse", "mae": "height_mae", "rmse_scaled": "height_rmse_scaled",
-             "mae_scaled": "height_mae_scaled", "normal_angle": "normal_mean_deg",
-             "rmse_ambiguous": "height_rmse_flip", "normal_angle_ambiguous": "normal_mean_deg_flip"}
-    out = {names[k]: float(v) for k, v in scores.items() if k in names}
-    if pixel_range and "height_rmse" in out:
-        out["height_rmse_rel"] = out["height_rmse"] / pixel_range
-    return out
+def with_estimated_light(image, light, *, albedo=None, mask=None, pixel_size=1.0, method, estimator, **options):
+    """Run SFS ``method`` with the light and albedo that ``estimator`` finds in ``image`` (the
+    given ``light`` and ``albedo`` are ignored)."""
+    est = estimator(image, mask)
+    return method(image, est.direction, albedo=est.albedo, mask=mask, pixel_size=pixel_size, **options)
+
+
+def flat_reference(true_height, true_normals, mask, *, pixel_size=1.0, height_range=None) -> dict:
+    """``baseline:flat``: :func:`pbrbench.metrics.sfs.flat_baseline`."""
+    return flat_baseline(true_height, true_normals, mask, height_range=height_range)
+
+
+def floor_reference(true_height, true_normals, mask, *, pixel_size=1.0, height_range=None) -> dict:
+    """``floor:integrate_true_normals``: :func:`pbrbench.metrics.sfs.floor_scores` on the pixels
+    whose true normal faces the camera."""
+    dom = mask & (true_normals[..., 2] > 1e-3)
+    return floor_scores(true_height, true_normals, dom, pixel_size=pixel_size, height_range=height_range)
+
+
+def result_arrays(out, shape):
+    """(height, normals, converged or None) from what an SFS algorithm returned."""
+    z = C.attribute(out, "height", 0)
+    n = C.attribute(out, "normals", 1)
+    if z is None or n is None:
+        raise ValueError("output: return height (H, W) and normals (H, W, 3) (an SFSResult, a dict or a tuple)")
+    z = C.check_array(z, "height", shape)
+    n = C.check_array(n, "normals", shape + (3,))
+    conv = C.attribute(out, "converged", None)
+    return z, n, (None if conv is None else float(bool(conv)))
 
 
 class SFSTask(Task):
     name = "sfs"
     description = ("Shape from one shaded image (Horn 1989, Tsai-Shah 1994, Pentland 1990, Kimmel-"
                    "Sethian 2001) with the flat baseline and the true-normal integration floor.")
-    algorithms = (tuple(SFS_METHODS) + tuple(m + EST for m in SFS_METHODS) + (FLAT, FLOOR, LIGHT_EST))
     conditions = ("local", f"local+noise{NOISE:g}", "area", "global")
     headline_metric = "normal_mean_deg"
-    headline_better = "lower"
     families = FAMILIES
-    draft_families = ("sfs_sphere",)
+    short_families = ("sfs_sphere",)
+
+    def builtin_algorithms(self) -> list[Algorithm]:
+        from pbrbench.infer.sfs import LIGHT_METHODS, METHODS
+
+        out = [Algorithm(n, self.name, fn) for n, fn in METHODS.items()]
+        out += [Algorithm(n + EST, self.name, functools.partial(with_estimated_light, method=fn,
+                                                                estimator=LIGHT_METHODS[ESTIMATOR]),
+                          conditions=("local",), figures=False,
+                          description=f"{n} with the light and albedo estimated by the {ESTIMATOR} method")
+                for n, fn in METHODS.items()]
+        out += [Algorithm("baseline:flat", self.name, flat_reference, kind="baseline", interface="reference"),
+                Algorithm("floor:integrate_true_normals", self.name, floor_reference, kind="floor",
+                          interface="reference")]
+        out += [Algorithm(f"light_from_shading:{n}", self.name, fn, interface="light", conditions=("local",))
+                for n, fn in LIGHT_METHODS.items()]
+        return out
 
     @staticmethod
-    def _params(spec, light, index, quality) -> tuple:
+    def _params(spec, light, index) -> tuple:
         d, e = C.nominal_light(light, spec.camera)
         label = "view" if d[2] > 0.999 else "oblique"
         return (("light", C.as_param(d)), ("irradiance", round(float(e), 9)), ("light_index", index),
-                ("label", label), ("half_width", float(spec.camera.half_width)), ("draft", quality == "draft"))
+                ("label", label), ("half_width", float(spec.camera.half_width)))
 
     @staticmethod
     def _cases(spec):
@@ -97,23 +122,24 @@ class SFSTask(Task):
             return [(spec.lights[0], -1)]
         return []
 
-    def jobs(self, quality: str) -> list[Job]:
+    def jobs(self, quality) -> list[Job]:
         out = []
-        for fam in C.families_for(self, quality):
+        for fam in quality.pick(self.families, self.short_families):
             twins = C.family_scenes(f"{fam}_area")
             for i, s in enumerate(C.family_scenes(fam)):
                 tw = twins[i] if i < len(twins) else None
                 tw_cases = dict((k, li) for li, k in self._cases(tw)) if tw is not None else {}
                 for light, k in self._cases(s):
-                    p = self._params(s, light, k, quality)
+                    p = self._params(s, light, k)
                     out.append(Job(self.name, s.name, "local", p))
                     out.append(Job(self.name, s.name, f"local+noise{NOISE:g}", p))
                     out.append(Job(self.name, s.name, "global", p))
                     if k in tw_cases:
-                        out.append(Job(self.name, tw.name, "area", self._params(tw, tw_cases[k], k, quality)))
+                        out.append(Job(self.name, tw.name, "area", self._params(tw, tw_cases[k], k)))
         return out
 
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0) -> JobResult:
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
         base, mods = C.parse_condition(job.condition)
         k = int(job.param("light_index", -1))
@@ -130,58 +156,59 @@ class SFSTask(Task):
         z_true = np.where(mask, -gt["depth"].astype(float), 0.0)
         zrange = float(np.ptp(z_true[mask])) if mask.any() else None
         n_true = gt["normals"].astype(float)
-        draft = bool(job.param("draft", False))
         label = job.param("label")
-        book = C.ScoreBook(job, C.scene_hash(gt), scene_label=f"{job.scene}:{label}" if label else None)
+        book = C.ScoreBook(job, C.scene_hash(gt), algorithms, scene_label=f"{job.scene}:{label}" if label else None)
         res = JobResult(job)
         res.images["linear:input"] = C.display(img)
         res.images["normals: truth"] = C.normals_display(n_true, mask)
         row = img.shape[0] // 2
         zt_row = np.where(mask[row], z_true[row] - z_true[mask].mean(), np.nan)
         prof = {"truth": zt_row}
-
-        runs = [(m, light, known_albedo) for m in SFS_METHODS]
-        if base == "local" and not mods:
-            try:
-                est = light_from_shading(img, mask)
-                ang = float(np.degrees(np.arccos(np.clip(np.dot(est.direction, light / np.linalg.norm(light)), -1, 1))))
-                book.add(LIGHT_EST, "light_error_deg", ang, 0.0, "lower")
-                runs += [(m + EST, est.direction, est.albedo) for m in SFS_METHODS]
-            except ValueError:
-                pass
-        for alg, s, alb in runs:
-            method = alg.split("+")[0]
-            opts = DRAFT_OPTIONS.get(method, {}) if draft else {}
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", RuntimeWarning)
+        s_unit = light / np.linalg.norm(light)
+        for alg in algorithms:
+            if alg.interface == "reference":
                 with C.Timer() as t:
-                    try:
-                        r = shape_from_shading(img, s, method=method, albedo=alb, mask=mask, pixel_size=px, **opts)
-                    except ValueError:
-                        r = None  # the method refuses this input: scored as a failure
-            if r is None:
-                book.add(alg, "failed", 1.0, t.seconds, "lower")
+                    sc = alg(z_true, n_true, mask, pixel_size=px, height_range=zrange, quality=quality)
+                book.add(alg.name, sc, t.seconds)
+                if alg.kind == "baseline":
+                    prof[alg.name] = np.where(mask[row], 0.0, np.nan)
                 continue
-            sc = rename(sfs_scores(r.height, r.normals, z_true, n_true, mask), zrange)
-            sc["converged"] = float(r.converged)
+            if alg.interface == "light":
+                out, seconds, err = C.call(alg, img, mask, quality=quality,
+                                           check=lambda o: C.check_array(C.attribute(o, "direction", 0), "direction", (3,)))
+                if err is not None:
+                    book.add(alg.name, {"failed": 1.0}, seconds)
+                    res.failures[alg.name] = err
+                else:
+                    nd = float(np.linalg.norm(out))
+                    d = out if abs(nd - 1.0) <= 1e-9 else out / max(nd, 1e-300)
+                    ang = float(np.degrees(np.arccos(np.clip(np.dot(d, s_unit), -1, 1))))
+                    book.add(alg.name, {"light_error_deg": ang}, 0.0)
+                continue
+            out, seconds, err = C.call(alg, img, light, albedo=known_albedo, mask=mask, pixel_size=px,
+                                       quality=quality, check=lambda o: result_arrays(o, img.shape))
+            if err is not None:
+                book.add(alg.name, {"failed": 1.0}, seconds)
+                res.failures[alg.name] = err
+                continue
+            z, n, conv = out
+            sc = sfs_scores(z, n, z_true, n_true, mask, height_range=zrange)
+            if conv is not None:
+                sc["converged"] = conv
             sc["failed"] = 0.0
-            book.add_all(alg, sc, t.seconds, DIRECTIONS)
-            if EST not in alg:
-                prof[alg] = np.where(mask[row], r.height[row], np.nan)
-                res.images[f"normals: {alg}"] = C.normals_display(r.normals, mask)
-                res.error_maps[f"height error (offset removed): {alg}"] = C.display_map(
-                    np.where(mask, (r.height - r.height[mask].mean()) - (z_true - z_true[mask].mean()), np.nan))
-        # the two references
-        with C.Timer() as t:
-            sc = rename(flat_baseline(z_true, n_true, mask), zrange)
-        book.add_all(FLAT, sc, t.seconds, DIRECTIONS)
-        prof[FLAT] = np.where(mask[row], 0.0, np.nan)
-        dom = mask & (n_true[..., 2] > 1e-3)
-        with C.Timer() as t:
-            sc = rename(floor_scores(z_true, n_true, dom, pixel_size=px), zrange)
-        book.add_all(FLOOR, sc, t.seconds, DIRECTIONS)
-        z_floor = floor_height(n_true, dom, pixel_size=px)
-        prof[FLOOR] = np.where(dom[row], z_floor[row], np.nan)
+            book.add(alg.name, sc, seconds)
+            if alg.figures:
+                prof[alg.name] = np.where(mask[row], z[row], np.nan)
+                res.images[f"normals: {alg.name}"] = C.normals_display(n, mask)
+                res.error_maps[f"height error (offset removed): {alg.name}"] = C.display_map(
+                    np.where(mask, (z - z[mask].mean()) - (z_true - z_true[mask].mean()), np.nan))
+        floors = [a for a in algorithms if a.kind == "floor" and a.interface == "reference"]
+        if floors:
+            from pbrbench.metrics.sfs import floor_height
+
+            dom = mask & (n_true[..., 2] > 1e-3)
+            z_floor = floor_height(n_true, dom, pixel_size=px)
+            prof[floors[0].name] = np.where(dom[row], z_floor[row], np.nan)
         res.plots[f"height profile, row {row}"] = C.profile_plot(
             np.arange(img.shape[1]) * px, prof, "x (world units from the left edge)", "height (offset removed)")
         res.scores = book.scores

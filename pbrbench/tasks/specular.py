@@ -1,62 +1,87 @@
-"""Specularity detection and removal on rendered glossy objects (SCIENCE.md §1).
+"""Specularity detection and removal on rendered glossy objects.
 
-Scenes (naming contract): ``specular_sphere``, ``specular_shapes`` (plastic / roughplastic); their
-ground truth has ``diffuse_only``, the same scene with every coating removed.  The true specular
-mask is where ``radiance - diffuse_only`` exceeds 10 % of the brightest diffuse radiance
+Scenes: ``specular_sphere``, ``specular_shapes`` (plastic / roughplastic); their ground truth has
+``diffuse_only``, the same scene with every coating removed.  The true specular mask is where
+``radiance - diffuse_only`` exceeds 10 % of the brightest diffuse radiance
 (:func:`pbrbench.metrics.specular.specular_mask_from_twin`, ``reference="peak"``).
 
 Conditions: ``global`` (the ``radiance`` render; the twin is rendered with the same integrator,
-so it is the exact target) and ``global+noise0.01`` (1 % Gaussian noise of the peak).
+so it is the exact target) and ``global+noise0.01`` (1 % Gaussian noise of the peak).  There is no
+``local`` / ``area`` axis: the chapter's recipe (find small bright blobs, fill them from their
+surroundings) does not model the light transport, and the glossy lobe of an area source is not a
+small blob, so a direct-only or an area-source twin would measure the detector's size prior, not
+the cost of an effect.
 
-Algorithms: :func:`pbrbench.infer.specular.remove_specularities` with each fill method after
-:func:`pbrbench.infer.specular.detect_specularities` (defaults, restricted to the object mask);
-``<fill>+true_mask`` (the same fill with the true specular mask: the fill's own error, without
-detection errors); ``baseline:no_removal`` (the image unchanged, nothing detected).
+Algorithms (from the registry), by calling convention (``interface``):
 
-Metrics: ``mask_iou`` of the detected vs the true mask (higher is better); from
-:func:`pbrbench.metrics.specular.removal_errors` against the twin, ``inside_rel`` (relative RMS
-error inside the true mask) and ``ring_rel`` (in a 3-pixel ring around it); ``image_rel_rmse``,
-the relative RMS error vs the twin over the whole object.
+* main -- ``fn(image, *, mask) -> (detected_mask, removed_image)``: every fill method of
+  :data:`pbrbench.infer.specular.FILL_METHODS` after
+  :func:`pbrbench.infer.specular.detect_specularities` (defaults, restricted to the object
+  mask), any plugin, and ``baseline:no_removal`` (the image unchanged, nothing detected);
+* ``fill`` -- ``<fill>+true_mask``, floors: the same fill given the true specular mask
+  (``fn(image, mask) -> removed_image``): the fill's own error, without detection errors.
 
-Draft quality uses ``specular_sphere`` only.
+Metrics: :func:`pbrbench.metrics.specular.specular_scores` (``mask_iou`` of the detected mask;
+``inside_rel`` / ``ring_rel`` against the twin inside and around the true mask;
+``image_rel_rmse`` over the whole object).
 """
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
-from pbrbench.infer.specular import FILL_METHODS, detect_specularities, remove_specularities
-from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
+from pbrbench.metrics.specular import specular_mask_from_twin, specular_scores
+from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
 
 FAMILIES = ("specular_sphere", "specular_shapes")
 NOISE = 0.01
-NO_REMOVAL = "baseline:no_removal"
 ORACLE = "+true_mask"
-DIRECTIONS = {"mask_iou": "higher", "inside_rel": "lower", "ring_rel": "lower", "image_rel_rmse": "lower"}
+
+
+def detect_and_fill(image, *, mask, fill):
+    """Detect specularities inside ``mask`` and remove them with the fill method ``fill``."""
+    from pbrbench.infer.specular import detect_specularities
+
+    detected = detect_specularities(image, mask=mask)
+    return detected, fill(image, detected)
+
+
+def no_removal(image, *, mask):
+    """``baseline:no_removal``: nothing detected, the image unchanged."""
+    return np.zeros_like(mask), image
 
 
 class SpecularTask(Task):
     name = "specular"
     description = ("Find small bright blobs and replace them by smooth interpolation (the chapter's "
                    "§1.1 recipe), scored against the diffuse-only twin render.")
-    algorithms = tuple(FILL_METHODS) + tuple(m + ORACLE for m in FILL_METHODS) + (NO_REMOVAL,)
     conditions = ("global", f"global+noise{NOISE:g}")
     headline_metric = "inside_rel"
-    headline_better = "lower"
     families = FAMILIES
-    draft_families = ("specular_sphere",)
+    short_families = ("specular_sphere",)
 
-    def jobs(self, quality: str) -> list[Job]:
+    def builtin_algorithms(self) -> list[Algorithm]:
+        from pbrbench.infer.specular import FILL_METHODS
+
+        out = [Algorithm(n, self.name, functools.partial(detect_and_fill, fill=fn)) for n, fn in FILL_METHODS.items()]
+        out += [Algorithm(n + ORACLE, self.name, fn, kind="floor", interface="fill") for n, fn in FILL_METHODS.items()]
+        out.append(Algorithm("baseline:no_removal", self.name, no_removal, kind="baseline"))
+        return out
+
+    def jobs(self, quality) -> list[Job]:
         out = []
-        for fam in C.families_for(self, quality):
+        for fam in quality.pick(self.families, self.short_families):
             for s in C.family_scenes(fam):
                 if s.has_glossy:
                     out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0) -> JobResult:
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
         _, mods = C.parse_condition(job.condition)
         obj = gt.mask
@@ -65,42 +90,44 @@ class SpecularTask(Task):
             img = C.add_noise(img, mods["noise"], C.job_rng(job, seed), peak=float(img[obj].max()))
         twin = np.asarray(gt["diffuse_only"], np.float64)
         true_mask = specular_mask_from_twin(gt["radiance"], twin, threshold=0.1, reference="peak", mask=obj)
-        book = C.ScoreBook(job, C.scene_hash(gt))
+        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:input"] = C.display(img)
         res.images["linear:truth (diffuse-only twin)"] = C.display(twin)
         res.images["specular mask: truth"] = C.display(true_mask.astype(float))
-        detected = None
-        det_seconds = 0.0
-        for alg in self.algorithms:
-            with C.Timer() as t:
-                if alg == NO_REMOVAL:
-                    mask, out = np.zeros_like(obj), img
-                elif alg.endswith(ORACLE):
-                    mask = true_mask
-                    out = remove_specularities(img, mask, method=alg[: -len(ORACLE)])
-                else:
-                    if detected is None:
-                        with C.Timer() as td:
-                            detected = detect_specularities(img, mask=obj)
-                        det_seconds = td.seconds
-                    mask = detected
-                    out = remove_specularities(img, mask, method=alg)
-            seconds = t.seconds + (det_seconds if alg in FILL_METHODS else 0.0)
-            sc = removal_errors(out, twin, true_mask, valid=obj)
-            sc = {k: v for k, v in sc.items() if k in ("inside_rel", "ring_rel") and np.isfinite(v)}
-            if not alg.endswith(ORACLE):
-                sc["mask_iou"] = mask_iou(mask, true_mask)
-            d = (out - twin)[obj]
-            ref = float(np.sqrt(np.mean(twin[obj] ** 2))) if obj.any() else 0.0
-            if ref > 0:
-                sc["image_rel_rmse"] = float(np.sqrt(np.mean(d * d))) / ref
-            book.add_all(alg, sc, seconds, DIRECTIONS)
-            if alg == FILL_METHODS[0]:
-                res.images[f"specular mask: {alg}"] = C.display(mask.astype(float))
-                res.images[f"linear:removed: {alg}"] = C.display(out)
+
+        def check_removed(o):
+            return C.check_array(o, "removed", img.shape)
+
+        def check_pair(o):
+            det, rem = C.attribute(o, "mask", 0), C.attribute(o, "removed", 1)
+            if det is None or rem is None:
+                raise ValueError("output: return (detected_mask (H, W), removed_image) ")
+            det = np.asarray(det)
+            if det.shape != obj.shape:
+                raise ValueError(f"detected mask: returned shape {det.shape}, expected {obj.shape}")
+            return det.astype(bool), check_removed(rem)
+
+        first = True
+        for alg in algorithms:
+            if alg.interface == "fill":
+                out, seconds, err = C.call(alg, img, true_mask, quality=quality, check=check_removed)
+                detected = None
+            else:
+                out, seconds, err = C.call(alg, img, mask=obj, quality=quality, check=check_pair)
+                if err is None:
+                    detected, out = out
+            if err is not None:
+                book.add(alg.name, {"failed": 1.0}, seconds)
+                res.failures[alg.name] = err
+                continue
+            book.add(alg.name, specular_scores(out, twin, true_mask, obj, detected=detected), seconds)
+            if first and alg.kind == "method":
+                first = False
+                res.images[f"specular mask: {alg.name}"] = C.display(detected.astype(float))
+                res.images[f"linear:removed: {alg.name}"] = C.display(out)
                 ref_b = max(float(C.grey(twin)[obj].max()), 1e-30) if obj.any() else 1.0
-                res.error_maps[f"|removed - twin| / peak: {alg}"] = C.display_map(
+                res.error_maps[f"|removed - twin| / peak: {alg.name}"] = C.display_map(
                     np.where(obj, np.abs(C.grey(out) - C.grey(twin)) / ref_b, np.nan))
         res.scores = book.scores
         return res

@@ -82,11 +82,11 @@ def sphere_spec(light: dict, *, name: str, resolution: int = 64, spp: int = 8192
 
 
 def shadow_spec(*, occluded: bool = True, resolution: int = 64, spp: int = 16384) -> SceneSpec:
-    """The geometry of the library scene ``shadow_near`` (read from it when present), direct only."""
-    from pbrbench.scene.load import scenes_dir
+    """The geometry of the shipped library scene ``shadow_near`` (read from it when present), direct only."""
+    from pbrbench.settings import LIBRARY_DIR
 
     base = None
-    path = scenes_dir() / "shadow_near.toml"
+    path = LIBRARY_DIR / "shadow_near.toml"
     if path.is_file():
         from pbrbench.scene.load import load_scene_file
 
@@ -347,18 +347,20 @@ def check_decomposition(quality: str = "draft", cache=None, *, alpha: float = 0.
 
 
 # --------------------------------------------------------------------------- registry
+# every check: (quality, cache, *, diagnostics_dir) -> records
 CHECKS: dict[str, Callable[..., list[Record]]] = {
-    "sphere_directional": lambda q, c: check_sphere(q, c, kind="directional"),
-    "sphere_point": lambda q, c: check_sphere(q, c, kind="point"),
-    "area_source": check_area_source,
-    "integrating_sphere": check_integrating_sphere,
-    "depth": check_depth,
-    "decomposition": check_decomposition,
+    "sphere_directional": lambda q, c, **kw: check_sphere(q, c, kind="directional"),
+    "sphere_point": lambda q, c, **kw: check_sphere(q, c, kind="point"),
+    "area_source": lambda q, c, **kw: check_area_source(q, c),
+    "integrating_sphere": lambda q, c, **kw: check_integrating_sphere(q, c),
+    "depth": lambda q, c, **kw: check_depth(q, c),
+    "decomposition": lambda q, c, **kw: check_decomposition(q, c, diagnostics_dir=kw.get("diagnostics_dir")),
 }
 
 
-def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None) -> list[Record]:
-    """Run the named checks (default: all) at ``quality``; returns every record."""
+def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None, diagnostics_dir=None) -> list[Record]:
+    """Run the named checks (default: all) at ``quality``; returns every record.  Statistical
+    checks that fail write diagnostic images into ``diagnostics_dir`` when it is given."""
     get_quality(quality)
     names = list(CHECKS) if not checks else list(checks)
     unknown = [n for n in names if n not in CHECKS]
@@ -369,7 +371,7 @@ def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None
     _quiet_mitsuba()
     out: list[Record] = []
     for n in names:
-        recs = CHECKS[n](quality, cache)
+        recs = CHECKS[n](quality, cache, diagnostics_dir=diagnostics_dir)
         out += recs
         if progress is not None:
             progress(n, recs)

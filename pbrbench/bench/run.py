@@ -1,0 +1,287 @@
+"""Run the benchmark: plan, ground truths, jobs, store, regression check, report.
+
+Flow of :func:`run_benchmark`:
+
+1. the plan: every task's jobs at the quality profile (:mod:`pbrbench.bench.plan`), and the
+   algorithms of each task from the registry (:mod:`pbrbench.registry`);
+2. every ground truth the plan needs is looked up in the render cache and the missing ones are
+   rendered (:mod:`pbrbench.bench.source`, on the executor);
+3. the jobs run (:mod:`pbrbench.bench.executors`), each a pure function of (task, job, ground
+   truths, algorithms, seed, quality); as each finishes its scores go into the store in one
+   transaction and its figures into ``<out>/<run>/figures/<job>/``, so an interrupted run keeps
+   everything completed;
+4. the scores are compared with the regression baselines once, and the comparison is stored with
+   the run; the run is exported as ``<out>/<run>/scores.json``, the HTML report (which reads only
+   the store) is written, and only then is the run marked complete.
+
+Resuming (``--resume RUN``) reuses the run's stored configuration and skips the jobs it has
+already stored.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import traceback
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+from pbrbench.bench.executors import make_executor, worker_source
+from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
+from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
+from pbrbench.bench.store import Store
+from pbrbench.errors import UserError
+
+
+@dataclass
+class RunConfig:
+    """Everything that decides what a run computes (stored with the run as JSON)."""
+
+    tasks: list[str] | None = None
+    quality: str = "standard"
+    seed: int = 0
+    executor: str = "local"
+    scheduler: str | None = None
+    workers: int | None = None
+    resume: str | None = None
+    report: bool = True
+    check: bool = False
+    update_baselines: bool = False
+    algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
+
+    def recorded(self) -> dict:
+        return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,
+                "workers": self.workers, "algorithms": list(self.algorithms)}
+
+
+@dataclass
+class RunOutcome:
+    run_id: str
+    report: Path | None
+    scores: list[dict]
+    n_jobs: int
+    n_skipped: int
+    errors: dict[str, str]
+    comparison: object | None = None
+    render_seconds: float = 0.0
+    job_seconds: float = 0.0
+    wall_seconds: float = 0.0
+    renders: int = 0
+    task_info: dict = field(default_factory=dict)
+
+
+def _log(msg: str):
+    print(f"pbrbench: {msg}", file=sys.stderr, flush=True)
+
+
+# ----------------------------------------------------------------------------- one job
+def _check_scores(job, scores) -> list[dict]:
+    out = []
+    for s in scores:
+        d = s.as_dict() if hasattr(s, "as_dict") else dict(s)
+        if d["task"] != job.task:
+            raise ValueError(f"score {d['metric']!r} names task {d['task']!r}, job is {job.task!r}")
+        if d.get("better") not in ("lower", "higher"):
+            raise ValueError(f"score {d['metric']!r}: better={d.get('better')!r}; use 'lower' or 'higher'")
+        d["value"] = float(d["value"])
+        d["seconds"] = float(d.get("seconds") or 0.0)
+        out.append(d)
+    return out
+
+
+def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorithms, quality) -> dict:
+    """Run one job and draw its figures (in this process or on a worker); never raises."""
+    from pbrbench.report.figures import job_figures
+
+    t0 = time.perf_counter()
+    c0 = time.process_time()
+    try:
+        src = worker_source(source)
+        with RENDER_LOCK:
+            gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
+            result = task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
+        scores = _check_scores(job, result.scores)
+        files, manifest = job_figures(result, job_dir)
+        error = None
+    except Exception:  # noqa: BLE001 - a failing job is recorded, the run goes on
+        scores, files, manifest = [], {}, None
+        error = traceback.format_exc(limit=8)
+    return {"key": job.key, "task": job.task, "scores": scores, "files": files, "manifest": manifest,
+            "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "error": error}
+
+
+def _render_task(source, spec) -> tuple[str, dict, bool]:
+    meta, cached = worker_source(source).render(spec)
+    return spec.name, meta, cached
+
+
+def _write_files(run_dir: Path, files: dict[str, bytes]):
+    for rel, data in files.items():
+        p = run_dir / "figures" / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp = p.with_name(p.name + ".tmp")
+        tmp.write_bytes(data)
+        os.replace(tmp, p)
+
+
+def comparison_record(comparison) -> dict:
+    """A stored form of a :class:`pbrbench.bench.regress.Comparison`."""
+    return {"regressions": [asdict(c) for c in comparison.regressions],
+            "improvements": [asdict(c) for c in comparison.improvements],
+            "missing": list(comparison.missing), "new": list(comparison.new),
+            "n_checked": comparison.n_checked}
+
+
+# ----------------------------------------------------------------------------- the run
+def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, source=None, executor=None,
+                  registry=None, log=None) -> RunOutcome:
+    """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
+    ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
+    from pbrbench.bench import regress
+    from pbrbench.registry import builtin_registry
+    from pbrbench.render.quality import get_quality
+    from pbrbench.report.figures import slug
+    from pbrbench.settings import Settings
+
+    log = log or _log
+    settings = settings or Settings.from_env()
+    t_start = time.perf_counter()
+    store = Store(settings.store_path())
+    prior_done: set[str] = set()
+    if cfg.resume:
+        run_id = store.resolve_run(cfg.resume)
+        run = store.get_run(run_id)
+        rc = run["config"]
+        cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
+        cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
+        settings = settings.with_(variant=settings.variant or rc.get("variant"))
+        prior_done = store.done_jobs(run_id)
+    quality = get_quality(cfg.quality)
+    if tasks is None:
+        tasks = load_tasks(cfg.tasks)
+    if not tasks:
+        raise UserError("no task to run; pass --tasks NAME (see `pbrbench run --help`)")
+    if registry is None:
+        registry = builtin_registry(tasks)
+    source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
+                                         scenes=settings.scenes)
+    variant = source.resolve_variant()
+    info = task_info(tasks, registry)
+    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info)
+    if cfg.resume:
+        store.set_status(run_id, "running")
+    else:
+        run_id = store.create_run(quality=quality.name, config=config, variant=variant)
+    run_dir = Path(settings.out) / run_id
+    run_dir.mkdir(parents=True, exist_ok=True)
+    bars = settings.progress_bars(sys.stderr)
+
+    from pbrbench.progress import Progress
+
+    jobs = plan(tasks, quality)
+    todo = [j for j in jobs if j.key not in prior_done]
+    names = needed_scenes(jobs)
+    specs = source.specs(names)
+    outcome = RunOutcome(run_id, None, [], len(jobs), len(jobs) - len(todo), {}, task_info=info)
+    ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
+                                   settings=settings)
+    status = "failed"
+    try:
+        # ---- ground truths
+        t0 = time.perf_counter()
+        metas: dict[str, tuple[dict, bool]] = {}
+        missing = []
+        for n in names:
+            m = source.cached_meta(specs[n])
+            if m is None:
+                missing.append(n)
+            else:
+                metas[n] = (m, True)
+        if missing:
+            with Progress(len(missing), f"render ({quality.name})", bars=bars, unit="scene") as bar:
+                for name, meta, cached in ex.imap(_render_task, [(source, specs[n]) for n in missing]):
+                    metas[name] = (meta, cached)
+                    outcome.renders += int(not cached)
+                    bar.update(1, name)
+        for n in names:
+            store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1])
+        outcome.render_seconds = time.perf_counter() - t0
+
+        # ---- jobs
+        t0 = time.perf_counter()
+        algs = {t: registry.for_task(t) for t in tasks}
+        args = [(tasks[j.task], j, {n: specs[n] for n in (j.scene, *j.extra_scenes)}, source, cfg.seed, slug(j.key),
+                 algs[j.task], quality) for j in todo]
+        with Progress(len(todo), "jobs", bars=bars, unit="job") as bar:
+            for res in ex.imap(execute_job, args):
+                if res["files"]:
+                    _write_files(run_dir, res["files"])
+                store.add_job_result(run_id, res["key"], res["task"], res["scores"], seconds=res["seconds"],
+                                     error=res["error"])
+                if res["error"]:
+                    outcome.errors[res["key"]] = res["error"]
+                    last = [ln for ln in res["error"].strip().splitlines() if ln.strip()][-1:]
+                    bar.write(f"pbrbench: job failed: {res['key'][:100]}: {last[0] if last else ''}")
+                bar.update(1, res["key"])
+        outcome.job_seconds = time.perf_counter() - t0
+        final = "complete" if not outcome.errors else "complete-with-errors"
+
+        # ---- regression check, export, report; only then is the run complete
+        outcome.scores = store.scores(run_id)
+        bpath = settings.baseline_path(quality.name)
+        baselines = regress.load_baselines(bpath) if bpath is not None else None
+        if baselines is not None:
+            outcome.comparison = regress.compare(outcome.scores, baselines)
+            store.set_comparison(run_id, dict(comparison_record(outcome.comparison), baseline=str(bpath),
+                                              baseline_quality=baselines.get("quality")))
+        store.export_json(run_id, run_dir / "scores.json")
+        if cfg.report:
+            from pbrbench.report.html import write_report
+
+            outcome.report = write_report(store, run_id, out_dir=run_dir)
+        status = final
+    except KeyboardInterrupt:
+        status = "interrupted"
+        log(f"run {run_id} interrupted; resume it with `pbrbench run --resume {run_id}`")
+        raise
+    finally:
+        store.set_status(run_id, status, variant=variant)
+        if executor is None:
+            ex.close()
+    outcome.wall_seconds = time.perf_counter() - t_start
+    store.close()
+    return outcome
+
+
+def _cache(settings):
+    from pbrbench.render.cache import RenderCache
+
+    return RenderCache(settings.cache)
+
+
+def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks: dict | None = None, source=None,
+                     executor=None, registry=None, log=None) -> Path:
+    """Run :data:`regress.N_SEEDS` - 1 more seeds, measure the spread and rewrite the baseline file."""
+    from pbrbench.bench import regress
+    from pbrbench.settings import Settings
+
+    log = log or _log
+    settings = settings or Settings.from_env()
+    path = settings.baseline_path(cfg.quality)
+    if path is None:
+        raise UserError("--update-baselines: no baselines directory (run from a source checkout or set "
+                        "PBRBENCH_BASELINES)")
+    runs = [first.scores]
+    seeds = [cfg.seed]
+    for i in range(1, regress.N_SEEDS):
+        c = RunConfig(**{**cfg.__dict__, "seed": cfg.seed + i, "resume": None, "report": False,
+                         "update_baselines": False, "check": False})
+        log(f"baseline spread: seed {c.seed} ({i + 1}/{regress.N_SEEDS})")
+        o = run_benchmark(c, settings=settings, tasks=tasks, source=source, executor=executor, registry=registry,
+                          log=log)
+        runs.append(o.scores)
+        seeds.append(c.seed)
+    data = regress.build_baselines(runs, quality=cfg.quality, seeds=seeds,
+                                   note=f"runs {first.run_id} (+{regress.N_SEEDS - 1} seeds)")
+    return regress.write_baselines(data, path)

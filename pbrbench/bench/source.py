@@ -1,0 +1,110 @@
+"""Where a run's ground truths come from: the render cache, rendering what is missing.
+
+A :class:`GroundTruthSource` is given its :class:`~pbrbench.render.cache.RenderCache` (injected,
+so tests substitute their own or a subclass that synthesises ground truths) and keeps the last
+few ground truths it loaded in memory, per instance.  It is picklable: Dask ships it to workers,
+where the worker plugin keeps one instance per source identity so consecutive jobs on a worker
+share its memory cache (:mod:`pbrbench.bench.executors`).
+
+Mitsuba must not be driven from two Python threads at once (a Dask worker may run tasks on
+several threads): :data:`RENDER_LOCK` serialises every render and job of a process.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections import OrderedDict
+
+from pbrbench.errors import UserError
+
+RENDER_LOCK = threading.RLock()
+
+
+class GroundTruthSource:
+    """Ground truths of ``quality`` from ``cache`` (rendered with ``variant`` when missing)."""
+
+    memory_size = 4     # ground truths kept in memory (consecutive jobs share a scene)
+
+    def __init__(self, quality, cache=None, variant: str | None = None, *, scenes=None):
+        from pbrbench.render.cache import RenderCache
+        from pbrbench.render.quality import get_quality
+
+        self.quality = get_quality(quality)
+        self.cache = cache if cache is not None else RenderCache()
+        self.variant = variant
+        self.scenes = scenes          # scene library directory (None: the setting)
+        self._memory: OrderedDict = OrderedDict()
+
+    # ------------------------------------------------------------------ pickling
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d["_memory"] = OrderedDict()  # never ship arrays
+        return d
+
+    def identity(self) -> str:
+        return f"{type(self).__name__}:{self.cache.root}:{self.quality.name}:{self.variant}"
+
+    # ------------------------------------------------------------------ variant and specs
+    def resolve_variant(self) -> str:
+        """The variant the renders use (decided without importing mitsuba)."""
+        from pbrbench.render.variant import choose_variant, current_choice
+
+        if self.variant is None:
+            choice = current_choice() or choose_variant(None)
+            self.variant = choice.variant
+        return self.variant
+
+    def specs(self, names: list[str]) -> dict:
+        """Scene name -> SceneSpec for every name (library names, sweep members, families of one)."""
+        from pbrbench.scene.load import load_library, resolve
+
+        lib = load_library(self.scenes)
+        out = {}
+        for n in names:
+            if n in lib:
+                out[n] = lib[n]
+                continue
+            got = resolve([n], self.scenes)
+            if len(got) != 1:
+                raise UserError(f"scene {n!r} names a family of {len(got)} scenes; a job needs one scene")
+            out[n] = got[0]
+        return out
+
+    def _key(self, spec) -> str:
+        from pbrbench.render.cache import cache_key
+
+        return cache_key(spec, self.quality.name, self.resolve_variant())
+
+    # ------------------------------------------------------------------ ground truths
+    def cached_meta(self, spec) -> dict | None:
+        """The cached ground truth's metadata, or None if it has to be rendered (no render here)."""
+        return self.cache.meta(self._key(spec))
+
+    def render(self, spec) -> tuple[dict, bool]:
+        """Render ``spec`` into the cache if missing; returns (metadata, from_cache)."""
+        gt, cached = self._fetch(spec)
+        self._remember(spec, gt)
+        return dict(gt.meta), cached
+
+    def load(self, spec):
+        """The ground truth of ``spec`` (memory, else the cache, else rendered)."""
+        key = spec.content_hash()
+        if key in self._memory:
+            self._memory.move_to_end(key)
+            return self._memory[key]
+        gt, _ = self._fetch(spec)
+        self._remember(spec, gt)
+        return gt
+
+    def _fetch(self, spec):
+        from pbrbench.render.cache import ground_truth
+
+        with RENDER_LOCK:
+            return ground_truth(spec, self.quality.name, cache=self.cache, variant=self.resolve_variant())
+
+    def _remember(self, spec, gt):
+        key = spec.content_hash()
+        self._memory[key] = gt
+        self._memory.move_to_end(key)
+        while len(self._memory) > self.memory_size:
+            self._memory.popitem(last=False)

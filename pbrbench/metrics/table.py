@@ -1,0 +1,57 @@
+"""The metrics table: every score name with its direction, unit and meaning.
+
+Each metrics module exports ``METRICS``, built with :func:`table`; :mod:`pbrbench.metrics`
+merges them.  A task scores with the functions of the metrics modules and stores whatever names
+they return; the direction and unit come from here, so no task restates them, and a score name
+that is in no table is an error (it would otherwise be silently "lower is better").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Metric:
+    """One score name: ``better`` is "lower" or "higher"; ``function`` produces it."""
+
+    name: str
+    better: str
+    unit: str
+    description: str
+    function: str = ""
+
+    def __post_init__(self):
+        if self.better not in ("lower", "higher"):
+            raise ValueError(f"metric {self.name!r}: better={self.better!r}; use 'lower' or 'higher'")
+
+
+def table(*rows: tuple) -> dict[str, Metric]:
+    """``{name: Metric}`` from rows ``(name, better, unit, description, function)``."""
+    out: dict[str, Metric] = {}
+    for r in rows:
+        m = Metric(*r)
+        if m.name in out:
+            raise ValueError(f"metric {m.name!r} is listed twice")
+        out[m.name] = m
+    return out
+
+
+def merge(*tables: dict[str, Metric]) -> dict[str, Metric]:
+    """One table from several; a name listed twice must mean the same (direction and unit)."""
+    out: dict[str, Metric] = {}
+    for t in tables:
+        for name, m in t.items():
+            old = out.get(name)
+            if old is not None and (old.better, old.unit) != (m.better, m.unit):
+                raise ValueError(f"metric {name!r} is defined twice with different meaning: "
+                                 f"{old.better}/{old.unit!r} and {m.better}/{m.unit!r}")
+            out.setdefault(name, m)
+    return out
+
+
+# metrics every task may report about an algorithm's run itself
+STATUS = table(
+    ("failed", "lower", "0/1", "1 when the algorithm raised or returned an unusable result (message in the report)", ""),
+    ("converged", "higher", "0/1", "1 when an iterative method met its own tolerance", ""),
+)

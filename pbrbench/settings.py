@@ -1,0 +1,147 @@
+"""One settings object, resolved once: command-line argument, else environment variable, else default.
+
+The command line builds :class:`Settings` from its arguments (:meth:`Settings.resolve`) and hands
+it to everything it calls; library functions that are called without one use
+:meth:`Settings.from_env`.  This is the only module that reads ``PBRBENCH_*`` variables.
+
+==========================  ===================  ==========================================================
+setting                     environment          default
+==========================  ===================  ==========================================================
+``cache`` (render cache)    PBRBENCH_CACHE       ``$XDG_CACHE_HOME/pbrbench``, else ``~/.cache/pbrbench``
+``out`` (reports)           --                   ``reports``
+``store`` (results db)      PBRBENCH_STORE       ``<out>/history.sqlite``
+``variant`` (Mitsuba)       PBRBENCH_VARIANT     chosen safely (:mod:`pbrbench.render.variant`)
+``scenes`` (library)        PBRBENCH_SCENES      the library shipped with the package
+``baselines``               PBRBENCH_BASELINES   ``tests/baselines`` of a source checkout (none in a wheel)
+``progress`` (bars)         PBRBENCH_PROGRESS    bars on a terminal, one line per stage otherwise
+``worker_threads``          PBRBENCH_WORKER_THREADS  Dr.Jit / BLAS threads per Dask worker (cores / workers)
+``llvm_search`` (dirs)      PBRBENCH_LLVM_SEARCH the system library directories
+``no_cuda``                 PBRBENCH_NO_CUDA     false (use CUDA when a device works)
+==========================  ===================  ==========================================================
+
+Only the standard library is imported here.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+PACKAGE_DIR = Path(__file__).resolve().parent
+LIBRARY_DIR = PACKAGE_DIR / "scene" / "library"
+
+
+def _source_baselines() -> Path | None:
+    """``tests/baselines`` of the source checkout this package runs from, if there is one."""
+    p = PACKAGE_DIR.parent / "tests" / "baselines"
+    return p if p.is_dir() else None
+
+
+def _flag(v: str | None) -> bool | None:
+    if v is None or v == "":
+        return None
+    return v.strip().lower() not in ("0", "false", "no", "off")
+
+
+ENV = {
+    "cache": "PBRBENCH_CACHE", "store": "PBRBENCH_STORE", "variant": "PBRBENCH_VARIANT",
+    "scenes": "PBRBENCH_SCENES", "baselines": "PBRBENCH_BASELINES", "progress": "PBRBENCH_PROGRESS",
+    "worker_threads": "PBRBENCH_WORKER_THREADS", "llvm_search": "PBRBENCH_LLVM_SEARCH",
+    "no_cuda": "PBRBENCH_NO_CUDA",
+}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """Where things live and how the process behaves (see the module docstring)."""
+
+    cache: Path
+    out: Path = Path("reports")
+    store: Path | None = None
+    variant: str | None = None
+    scenes: Path = LIBRARY_DIR
+    baselines: Path | None = None
+    progress: bool | None = None
+    worker_threads: int | None = None
+    llvm_search: tuple[str, ...] | None = None
+    no_cuda: bool = False
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_env(cls, env: Mapping[str, str] | None = None, **overrides) -> Settings:
+        """Environment, else defaults; ``overrides`` (not None) win over both."""
+        env = os.environ if env is None else env
+
+        def get(key):
+            v = env.get(ENV[key])
+            return v if v not in (None, "") else None
+
+        xdg = env.get("XDG_CACHE_HOME")
+        cache = get("cache") or (Path(xdg) / "pbrbench" if xdg else Path.home() / ".cache" / "pbrbench")
+        wt = get("worker_threads")
+        try:
+            wt = int(wt) if wt is not None else None
+        except ValueError:
+            from pbrbench.errors import UserError
+
+            raise UserError(f"PBRBENCH_WORKER_THREADS={wt!r}: give a whole number of threads") from None
+        ls = get("llvm_search")
+        s = cls(cache=Path(cache), store=Path(get("store")) if get("store") else None, variant=get("variant"),
+                scenes=Path(get("scenes")) if get("scenes") else LIBRARY_DIR,
+                baselines=Path(get("baselines")) if get("baselines") else _source_baselines(),
+                progress=_flag(get("progress")), worker_threads=wt,
+                llvm_search=tuple(ls.split(os.pathsep)) if ls else None,
+                no_cuda=bool(_flag(get("no_cuda"))))
+        return s.with_(**overrides)
+
+    @classmethod
+    def resolve(cls, args=None, env: Mapping[str, str] | None = None) -> Settings:
+        """From parsed command-line ``args`` (attributes named like the fields; None = not given),
+        then the environment, then the defaults."""
+        over = {}
+        for f in fields(cls):
+            v = getattr(args, f.name, None) if args is not None else None
+            if v is not None:
+                over[f.name] = v
+        return cls.from_env(env, **over)
+
+    def with_(self, **changes) -> Settings:
+        """A copy with the given (not None) fields replaced; paths are converted to :class:`Path`."""
+        clean = {}
+        for k, v in changes.items():
+            if v is None:
+                continue
+            if k in ("cache", "out", "store", "scenes", "baselines"):
+                v = Path(v)
+            clean[k] = v
+        return replace(self, **clean) if clean else self
+
+    # ------------------------------------------------------------------ derived
+    def store_path(self) -> Path:
+        """The results database: ``store``, else ``<out>/history.sqlite``."""
+        return Path(self.store) if self.store is not None else Path(self.out) / "history.sqlite"
+
+    def baseline_path(self, quality: str) -> Path | None:
+        """``<baselines>/<quality>.json`` (None when there is no baselines directory)."""
+        return None if self.baselines is None else Path(self.baselines) / f"{quality}.json"
+
+    def progress_bars(self, stream) -> bool:
+        """Progress bars when asked for, else when ``stream`` is a terminal."""
+        if self.progress is not None:
+            return self.progress
+        return bool(getattr(stream, "isatty", lambda: False)())
+
+    def worker_env(self) -> dict[str, str]:
+        """What a worker process needs in its environment to resolve the same settings."""
+        out = {ENV["cache"]: str(self.cache), ENV["scenes"]: str(self.scenes)}
+        if self.variant:
+            out[ENV["variant"]] = self.variant
+        if self.llvm_search:
+            out[ENV["llvm_search"]] = os.pathsep.join(self.llvm_search)
+        if self.no_cuda:
+            out[ENV["no_cuda"]] = "1"
+        if "DRJIT_LIBLLVM_PATH" in os.environ:
+            out["DRJIT_LIBLLVM_PATH"] = os.environ["DRJIT_LIBLLVM_PATH"]
+        return out
