@@ -32,13 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.camera import Camera, bracket_exposure_times
-from pbrbench.infer.hdr import (
-    CameraResponse,
-    calibrate_debevec,
-    calibrate_mitsunaga_nayar,
-    calibrate_robertson,
-    merge_hdr,
-)
+from pbrbench.infer.hdr import CALIBRATION_METHODS, CameraResponse, merge_hdr
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
 from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
@@ -46,13 +40,12 @@ from pbrbench.tasks.base import Job, JobResult, Task
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
 BIT_DEPTH = 8
-CALIBRATIONS = {"debevec": calibrate_debevec, "robertson": calibrate_robertson,
-                "mitsunaga_nayar": calibrate_mitsunaga_nayar}
+CALIBRATIONS = CALIBRATION_METHODS
 IGNORE = "baseline:ignore_response"
 TRUE = "floor:true_response"
 # at draft quality Mitsunaga-Nayar uses a fixed degree instead of its held-out search over 2..8
 # (the search is ~20x slower; the regression run must stay short)
-DRAFT_OPTIONS = {"mitsunaga_nayar": {"degree": 5}}
+DRAFT_OPTIONS = {"mitsunaga1999": {"degree": 5}}
 CONDITIONS = ("global+noise0", "global+readnoise0.002", "global+3x3stops", "global+clipped")
 DIRECTIONS = {"response_rmse": "lower", "invalid_fraction": "lower"}
 
@@ -124,7 +117,7 @@ class HDRTask(Task):
             with C.Timer() as t:
                 if alg in CALIBRATIONS:
                     opts = dict(DRAFT_OPTIONS.get(alg, {})) if job.param("draft") else {}
-                    if alg == "debevec":
+                    if alg == "debevec1997":
                         opts["seed"] = seed
                     resp = CALIBRATIONS[alg](br.images, br.exposure_times, **opts)
                 elif alg == IGNORE:
@@ -139,7 +132,7 @@ class HDRTask(Task):
                 sc["response_rmse"] = response_rmse(resp.inverse, br.true_inverse)
                 curves[alg] = np.log2(np.maximum(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)], 1e-12))
             book.add_all(alg, sc, t.seconds, DIRECTIONS)
-            if alg in ("debevec", IGNORE):
+            if alg in ("debevec1997", IGNORE):
                 res.images[f"linear:merged: {alg}"] = C.display(est / np.exp(np.mean(np.log(est[mask] / rad[mask]))))
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lr = np.log2(C.grey(est) / C.grey(rad))

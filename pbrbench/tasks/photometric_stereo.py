@@ -41,6 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.infer.integration import integrate_normals
+from pbrbench.infer.photometric_stereo import BASELINES as PS_BASELINES
 from pbrbench.infer.photometric_stereo import METHODS as PS_METHODS
 from pbrbench.infer.photometric_stereo import photometric_stereo
 from pbrbench.metrics.normals import (
@@ -65,20 +66,6 @@ SWEEP_KEEP = {"draft": 2}
 DIRECTIONS = {"normal_mean_deg": "lower", "normal_median_deg": "lower", "normal_frac_under_5deg": "higher",
               "normal_frac_under_10deg": "higher", "coverage": "higher", "albedo_rel_err": "lower",
               "albedo_rel_err_scaled": "lower", "height_rmse": "lower", "height_rmse_rel": "lower"}
-
-
-def naive_lstsq(images: np.ndarray, lights: np.ndarray, mask: np.ndarray):
-    """The naive baseline: ``g = pinv(V) I`` with every light, shadowed (clamped) ones included.
-
-    Returns ``(normals (H, W, 3), albedo (H, W), valid (H, W))``.
-    """
-    k, h, w = images.shape
-    g = np.linalg.pinv(np.asarray(lights, float)) @ images.reshape(k, -1)  # (3, H*W)
-    g = g.T.reshape(h, w, 3)
-    a = np.linalg.norm(g, axis=-1)
-    valid = mask & (a > 0)
-    n = np.divide(g, a[..., None], out=np.zeros_like(g), where=valid[..., None])
-    return n, np.where(valid, a, 0.0), valid
 
 
 def normal_scores(est, true, domain, valid) -> tuple[dict, np.ndarray]:
@@ -207,8 +194,9 @@ class PhotometricStereoTask(Task):
 
     def _run_ps(self, algorithm, images, lights, mask):
         if algorithm == NAIVE:
-            return naive_lstsq(images, lights, mask)
-        r = photometric_stereo(images, lights, mask=mask, method=algorithm)
+            r = PS_BASELINES["naive_lstsq_all_lights"](images, lights, mask=mask)
+        else:
+            r = photometric_stereo(images, lights, mask=mask, method=algorithm)
         return r.normals, r.albedo, r.valid
 
     # ----------------------------------------------------------------------------- run
@@ -243,7 +231,7 @@ class PhotometricStereoTask(Task):
             book.add_all(alg, sc, t.seconds, DIRECTIONS)
             res.images[f"normals: {alg}"] = C.normals_display(n, valid)
             res.error_maps[f"angular error (deg): {alg}"] = C.display_map(emap)
-            if alg == PS_METHODS[0]:
+            if alg == next(iter(PS_METHODS)):
                 res.images[f"albedo x pi: {alg}"] = C.display(np.clip(np.pi * a, 0, 1))
                 with np.errstate(invalid="ignore", divide="ignore"):
                     rel = np.where(domain & valid, np.pi * a / np.maximum(alb_true, 1e-6) - 1, np.nan)
@@ -263,7 +251,7 @@ class PhotometricStereoTask(Task):
         names = list(job.extra_scenes) + [job.scene]
         names.sort(key=lambda s: C.sweep_value(s, "albedo") or 0.0)
         lights = np.asarray(job.param("lights"), float)
-        alg = PS_METHODS[0]
+        alg = next(iter(PS_METHODS))
         xs, series = [], {}
         for name in names:
             gt = gts[name]

@@ -96,7 +96,7 @@ class SpecularTask(Task):
             if ref > 0:
                 sc["image_rel_rmse"] = float(np.sqrt(np.mean(d * d))) / ref
             book.add_all(alg, sc, seconds, DIRECTIONS)
-            if alg == FILL_METHODS[0]:
+            if alg == next(iter(FILL_METHODS)):
                 res.images[f"specular mask: {alg}"] = C.display(mask.astype(float))
                 res.images[f"linear:removed: {alg}"] = C.display(out)
                 ref_b = max(float(C.grey(twin)[obj].max()), 1e-30) if obj.any() else 1.0
