@@ -431,11 +431,11 @@ def test_hdr_true_response_floor_beats_ignoring_the_response():
     sc = scores_of(res)
     assert sc[("floor:true_response", "log2_rmse")] < 0.05
     assert sc[("baseline:ignore_response", "log2_rmse")] > 2 * sc[("floor:true_response", "log2_rmse")]
-    for alg in ("debevec", "robertson", "mitsunaga_nayar"):
+    for alg in ("debevec1997", "robertson2003", "mitsunaga1999"):
         assert sc[(alg, "invalid_fraction")] == 0 and np.isfinite(sc[(alg, "log2_rmse")])
         assert sc[(alg, "response_rmse")] < sc[("baseline:ignore_response", "response_rmse")]
     plot = res.plots["inverse response (green channel)"]
-    assert len(plot["x"]) == 256 and {"true", "debevec", "baseline:ignore_response"} <= set(plot["series"])
+    assert len(plot["x"]) == 256 and {"true", "debevec1997", "baseline:ignore_response"} <= set(plot["series"])
 
 
 # ------------------------------------------------------------------------------------- specular

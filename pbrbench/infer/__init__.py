@@ -1,27 +1,43 @@
 """The NumPy inference package: algorithms that run on linear images, rendered or real.
 
-Imports only NumPy and SciPy (never mitsuba or drjit; scikit-image and pyamg only lazily, inside
-the functions that use them), so it works on real photographs.
+Imports only NumPy and SciPy (never mitsuba or drjit), so it works on real photographs.  Optional
+packages are loaded only when a method that needs them is called: scikit-image by
+``remove_specularities(method="biharmonic")``; pyamg by the algebraic-multigrid branch of
+:func:`solve_gradient_field` (``method="cg"``, which ``"auto"`` picks on a masked domain, so
+also masked lightness and surface integration when the DCT-preconditioned iteration stalls);
+scikit-fmm by ``shape_from_shading(method="fast_marching")``.
+
+For each problem: one module per method named after its paper, a methods table (name ->
+function) and one dispatcher that forwards only the options the chosen method accepts.
 
 ========================  =====================================================================
 area                      functions
 ========================  =====================================================================
-HDR (§4)                  calibrate_debevec, calibrate_robertson, calibrate_mitsunaga_nayar,
-                          merge_hdr, CameraResponse
-lightness (§5)            retinex, retinex_1d
-specularities (§1)        detect_specularities, remove_specularities
-photometric stereo (§6)   photometric_stereo, PhotometricStereoResult
+HDR                       calibrate_response (CALIBRATION_METHODS: calibrate_debevec1997,
+                          calibrate_robertson2003, calibrate_mitsunaga1999), merge_hdr
+                          (MERGE_METHODS: merge_debevec1997), CameraResponse
+lightness                 lightness (LIGHTNESS_METHODS: lightness_blake1985 = retinex),
+                          lightness_1d_horn1974 = retinex_1d
+specularities             detect_specularities, remove_specularities (FILL_METHODS:
+                          remove_specularities_harmonic, remove_specularities_biharmonic)
+photometric stereo        photometric_stereo (PS_METHODS: photometric_stereo_woodham1980,
+                          photometric_stereo_ikehata2012_l1), PS_BASELINES
+                          (photometric_stereo_naive_lstsq), PhotometricStereoResult
 surface integration       integrate_normals, integrability_residual, normals_to_gradients,
                           solve_gradient_field (the shared least-squares Poisson solver)
-shape from shading (§7)   shape_from_shading, light_from_shading, SFSResult
+shape from shading        shape_from_shading, light_from_shading, SFSResult
 ========================  =====================================================================
 """
 
 from pbrbench.infer.hdr import (
+    CALIBRATION_METHODS,
+    MERGE_METHODS,
     CameraResponse,
-    calibrate_debevec,
-    calibrate_mitsunaga_nayar,
-    calibrate_robertson,
+    calibrate_debevec1997,
+    calibrate_mitsunaga1999,
+    calibrate_response,
+    calibrate_robertson2003,
+    merge_debevec1997,
     merge_hdr,
 )
 from pbrbench.infer.integration import (
@@ -29,27 +45,64 @@ from pbrbench.infer.integration import (
     integrate_normals,
     normals_to_gradients,
 )
-from pbrbench.infer.lightness import retinex, retinex_1d
-from pbrbench.infer.photometric_stereo import PhotometricStereoResult, photometric_stereo
+from pbrbench.infer.lightness import METHODS as LIGHTNESS_METHODS
+from pbrbench.infer.lightness import (
+    lightness,
+    lightness_1d_horn1974,
+    lightness_blake1985,
+    retinex,
+    retinex_1d,
+)
+from pbrbench.infer.photometric_stereo import BASELINES as PS_BASELINES
+from pbrbench.infer.photometric_stereo import METHODS as PS_METHODS
+from pbrbench.infer.photometric_stereo import (
+    PhotometricStereoResult,
+    photometric_stereo,
+    photometric_stereo_ikehata2012_l1,
+    photometric_stereo_naive_lstsq,
+    photometric_stereo_woodham1980,
+)
 from pbrbench.infer.poisson import solve_gradient_field
 from pbrbench.infer.sfs import SFSResult, light_from_shading, shape_from_shading
-from pbrbench.infer.specular import detect_specularities, remove_specularities
+from pbrbench.infer.specular import (
+    FILL_METHODS,
+    detect_specularities,
+    remove_specularities,
+    remove_specularities_biharmonic,
+    remove_specularities_harmonic,
+)
 
 __all__ = [
+    "CALIBRATION_METHODS",
+    "FILL_METHODS",
+    "LIGHTNESS_METHODS",
+    "MERGE_METHODS",
+    "PS_BASELINES",
+    "PS_METHODS",
     "CameraResponse",
     "PhotometricStereoResult",
     "SFSResult",
-    "calibrate_debevec",
-    "calibrate_mitsunaga_nayar",
-    "calibrate_robertson",
+    "calibrate_debevec1997",
+    "calibrate_mitsunaga1999",
+    "calibrate_response",
+    "calibrate_robertson2003",
     "detect_specularities",
     "integrability_residual",
     "integrate_normals",
     "light_from_shading",
+    "lightness",
+    "lightness_1d_horn1974",
+    "lightness_blake1985",
+    "merge_debevec1997",
     "merge_hdr",
     "normals_to_gradients",
     "photometric_stereo",
+    "photometric_stereo_ikehata2012_l1",
+    "photometric_stereo_naive_lstsq",
+    "photometric_stereo_woodham1980",
     "remove_specularities",
+    "remove_specularities_biharmonic",
+    "remove_specularities_harmonic",
     "retinex",
     "retinex_1d",
     "shape_from_shading",

@@ -1,9 +1,10 @@
-"""Retinex (SCIENCE.md §5) on analytic Mondrians with exactly known albedo and shading."""
+"""Retinex as Blake (1985) / the chapter's Algorithm 1.1 on analytic Mondrians with exactly known
+albedo and shading (pbrbench.infer.lightness.blake1985)."""
 
 import numpy as np
 import pytest
 
-from pbrbench.infer.lightness import retinex, retinex_1d
+from pbrbench.infer.lightness import lightness_blake1985, retinex
 from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, ratio_errors
 from pbrbench.shading.mondrian import (
     cast_shadow,
@@ -19,7 +20,7 @@ def _max_ratio_err(r, albedo, labels):
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_mondrian_smooth_light_targets(seed):
-    # Target of the issue: LMSE < 0.005 and patch ratios within 2 %, with the chapter's
+    # Target: LMSE < 0.005 and patch ratios within 2 %, with the chapter's
     # algorithm (defaults) under a smooth point-source light (shading range 1.6x).
     alb, lab = mondrian_albedo(256, seed=seed)
     sh = point_source_shading(256, position=(0.3, 0.2, 3.0))
@@ -160,25 +161,6 @@ def test_component_rule_meets_targets():
     assert _max_ratio_err(r, alb, lab) < 0.02
 
 
-def test_retinex_1d_fig_1_11():
-    x = np.linspace(0, 1, 400)
-    rho = np.where(x < 0.3, 0.8, np.where(x < 0.6, 0.2, 0.5))
-    light = 2.0 + np.sin(2 * x)  # slow: per-sample log change < 0.003
-    r, s = retinex_1d(rho * light, threshold=0.05)
-    np.testing.assert_allclose(r * s, rho * light, rtol=1e-12)
-    assert r.max() == pytest.approx(1.0)
-    # ratios between the papers are off only by the light's change across one sample per edge
-    assert r[180] / r[60] == pytest.approx(0.25, rel=0.01)
-    assert r[300] / r[180] == pytest.approx(2.5, rel=0.01)
-    # failure mode: a threshold above an edge's contrast (log 2.5 = 0.92) merges those papers
-    r_hi, _ = retinex_1d(rho * light, threshold=1.0)
-    assert r_hi[300] / r_hi[180] == pytest.approx(1.0)
-    assert r_hi[180] / r_hi[60] == pytest.approx(0.25, rel=0.01)
-    # colour profile, mean anchor
-    rc, _ = retinex_1d(np.stack([rho * light, 0.5 * rho * light], -1), anchor="mean", mean_lightness=0.4)
-    np.testing.assert_allclose(rc.mean(axis=0), 0.4)
-
-
 @pytest.mark.parametrize("kwargs, match", [
     ({"anchor": "darkest"}, "anchor"),
     ({"edge_rule": "sobel"}, "edge_rule"),
@@ -211,12 +193,14 @@ def test_retinex_bad_images():
         retinex(img, min_value=1e9)
 
 
-def test_retinex_1d_bad_inputs():
-    with pytest.raises(ValueError, match="<= 0"):
-        retinex_1d(np.array([1.0, 0.0, 2.0]))
-    with pytest.raises(ValueError, match="non-finite"):
-        retinex_1d(np.array([1.0, np.nan]))
-    with pytest.raises(ValueError, match="anchor"):
-        retinex_1d(np.ones(4), anchor="x")
-    with pytest.raises(ValueError, match="empty"):
-        retinex_1d(np.ones(0))
+def test_retinex_is_this_method():
+    assert retinex is lightness_blake1985
+
+
+def test_solver_option_is_forwarded_to_the_poisson_solver():
+    sc = mondrian_scene(48, seed=13)
+    r_auto, _ = retinex(sc["image"])
+    r_direct, _ = retinex(sc["image"], solver="direct")
+    np.testing.assert_allclose(r_direct, r_auto, rtol=1e-8)
+    with pytest.raises(ValueError, match="method"):
+        retinex(sc["image"], solver="multigrid")

@@ -1,30 +1,29 @@
-"""Lightness from one image: retinex as the chapter's Algorithm 1.1 (SCIENCE.md §5).
+"""Lightness by thresholded log-gradients and least-squares reconstruction (Blake 1985).
 
-Model: a frontal, matte, flat scene seen by a linear camera, ``C(x) = k I(x) rho(x)``, so
-``log C = log k + log I + log rho``.  Albedo ``rho`` is piecewise constant (a "Mondrian" of
-papers), illumination ``I`` varies slowly; hence large log-gradients are albedo edges and small
-ones are illumination.  The algorithm differentiates ``log C``, zeroes the gradients below a
-threshold, reconstructs the log-albedo ``l`` minimising ``|M_x l - p|^2 + |M_y l - q|^2`` (a
-Poisson problem, solved by :func:`pbrbench.infer.poisson.solve_gradient_field`), fixes the
-missing constant by a rule, and exponentiates.  Its known failure is a sharp illumination edge
-(a cast shadow), which passes the threshold and is taken for paint.
+This is the chapter's Algorithm 1.1 (D. A. Forsyth and J. Ponce, *Computer Vision: A Modern
+Approach*, chapter "Light and shading", Algorithm 1.1): differentiate ``log C``, zero the gradients
+below a threshold, reconstruct the log-albedo ``l`` minimising ``|M_x l - p|^2 + |M_y l - q|^2``
+(a Poisson problem with Neumann boundary conditions, solved by
+:func:`pbrbench.infer.poisson.solve_gradient_field`), fix the missing constant by a rule, and
+exponentiate.
 
-Objects
--------
-- :func:`retinex` -- 2-D retinex on (H, W) or (H, W, C) linear images, optional mask.
-- :func:`retinex_1d` -- the 1-D version on a profile (the chapter's Fig. 1.11).
-- ``ANCHORS``, ``EDGE_RULES`` -- the valid values of ``anchor`` and ``edge_rule``.
+Why "blake1985": thresholding the *gradient* (first derivatives) and reconstructing by least
+squares with the natural (Neumann) boundary conditions is Blake's formulation.  Horn (1974)
+thresholds the Laplacian instead and inverts it; Land & McCann (1971) multiply thresholded ratios
+along paths; Grosse et al. (2009) contribute only the per-component rule
+(``edge_rule="component"``).
 
 References
 ----------
-- E. H. Land and J. J. McCann, "Lightness and retinex theory", JOSA 61(1), 1971.
-- B. K. P. Horn, "Determining lightness from an image", Computer Graphics and Image
-  Processing 3(4), 1974.
 - A. Blake, "Boundary conditions for lightness computation in Mondrian world", Computer
   Vision, Graphics, and Image Processing 32(3), 1985.
+- B. K. P. Horn, "Determining lightness from an image", Computer Graphics and Image
+  Processing 3(4), 1974.
+- E. H. Land and J. J. McCann, "Lightness and retinex theory", JOSA 61(1), 1971.
 - R. Grosse, M. K. Johnson, E. H. Adelson and W. T. Freeman, "Ground truth dataset and
-  baseline evaluations for intrinsic image algorithms", ICCV 2009 (the per-component
-  threshold of ``edge_rule="component"``).
+  baseline evaluations for intrinsic image algorithms", ICCV 2009.
+- H. Knutsson and C.-F. Westin, "Normalized and differential convolution", CVPR 1993
+  (``edge_illumination="subtract"``).
 """
 
 from __future__ import annotations
@@ -39,11 +38,16 @@ from pbrbench.checks import (
     check_method,
     check_positive,
 )
+from pbrbench.infer.lightness._common import (
+    ANCHORS,
+    anchor_reflectance,
+    check_percentile,
+    check_threshold,
+)
 from pbrbench.infer.poisson import solve_gradient_field
 
-__all__ = ["retinex", "retinex_1d", "ANCHORS", "EDGE_RULES", "EDGE_ILLUMINATION"]
+__all__ = ["EDGE_ILLUMINATION", "EDGE_RULES", "lightness_blake1985"]
 
-ANCHORS = ("brightest", "mean")
 EDGE_RULES = ("magnitude", "component")
 EDGE_ILLUMINATION = ("keep", "subtract")
 _SMOOTH_RADIUS = 3  # half-size of the normalised-convolution window of edge_illumination="subtract"
@@ -71,20 +75,6 @@ def _smooth_part(g: np.ndarray, keep: np.ndarray, m: np.ndarray, axis_valid) -> 
     return out
 
 
-def _check_threshold(threshold) -> float:
-    t = float(threshold)
-    if not np.isfinite(t) or t < 0:
-        raise ValueError(f"threshold: must be a finite number >= 0 (log units per pixel), got {threshold!r}")
-    return t
-
-
-def _check_percentile(p) -> float:
-    p = float(p)
-    if not (np.isfinite(p) and 0 < p <= 100):
-        raise ValueError(f"brightest_percentile: must be in (0, 100], got {p!r}")
-    return p
-
-
 def _valid_pixels(img: np.ndarray, m: np.ndarray, min_value, name: str) -> np.ndarray:
     """Mask of pixels whose log is defined; ValueError for NaN/inf or non-positive values."""
     check_finite(img, name, where=m)
@@ -105,21 +95,10 @@ def _valid_pixels(img: np.ndarray, m: np.ndarray, min_value, name: str) -> np.nd
     return m
 
 
-def _anchor(log_refl: np.ndarray, sel: np.ndarray, anchor: str, mean_lightness: float,
-            percentile: float) -> np.ndarray:
-    """Reflectance from the log-albedo (..., C) with the constant fixed per channel."""
-    vals = log_refl[sel]  # (n, C)
-    if anchor == "brightest":
-        top = vals.max(axis=0) if percentile == 100.0 else np.percentile(vals, percentile, axis=0)
-        return np.exp(log_refl - top)
-    refl = np.exp(log_refl - vals.mean(axis=0))
-    return refl * (mean_lightness / refl[sel].mean(axis=0))
-
-
-def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
-            mean_lightness: float = 0.5, mask=None, edge_rule: str = "magnitude",
-            edge_illumination: str = "keep", min_value: float | None = None,
-            brightest_percentile: float = 100.0, method: str = "auto"):
+def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "brightest",
+                        mean_lightness: float = 0.5, mask=None, edge_rule: str = "magnitude",
+                        edge_illumination: str = "keep", min_value: float | None = None,
+                        brightest_percentile: float = 100.0, solver: str = "auto"):
     r"""Separate a linear image into reflectance and shading (retinex, Algorithm 1.1).
 
     With ``L = log C`` and forward differences ``p = L[i, j+1] - L[i, j]``,
@@ -128,7 +107,7 @@ def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
 
     .. math:: \min_l \; |M_x l - p_t|^2 + |M_y l - q_t|^2
 
-    on the (masked) pixel grid, with Neumann boundary conditions (Horn 1974; Blake 1985).
+    on the (masked) pixel grid, with Neumann boundary conditions (Blake 1985).
     Reflectance is ``exp(l + c)``, shading is ``image / reflectance``, so that
     ``reflectance * shading == image`` exactly on the valid pixels.
 
@@ -189,8 +168,8 @@ def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
     brightest_percentile : float
         Percentile of the log-albedo taken as white by ``anchor="brightest"`` (robust to
         isolated bright outliers when < 100).
-    method : str
-        Poisson solver method, passed to :func:`~pbrbench.infer.poisson.solve_gradient_field`.
+    solver : str
+        Poisson solver, passed as ``method`` to :func:`~pbrbench.infer.poisson.solve_gradient_field`.
 
     Returns
     -------
@@ -204,17 +183,18 @@ def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
 
     References
     ----------
-    E. H. Land and J. J. McCann, "Lightness and retinex theory", JOSA 1971; B. K. P. Horn,
-    "Determining lightness from an image", CGIP 1974; A. Blake, "Boundary conditions for
-    lightness computation in Mondrian world", CVGIP 1985.
+    A. Blake, "Boundary conditions for lightness computation in Mondrian world", CVGIP 32(3),
+    1985; E. H. Land and J. J. McCann, "Lightness and retinex theory", JOSA 1971 (white-patch
+    anchor); B. K. P. Horn, "Determining lightness from an image", CGIP 1974; R. Grosse et al.,
+    ICCV 2009 (``edge_rule="component"``).
     """
     img = as_float_array(image, "image", ndim=(2, 3))
     check_method(anchor, ANCHORS, "anchor")
     check_method(edge_rule, EDGE_RULES, "edge_rule")
     check_method(edge_illumination, EDGE_ILLUMINATION, "edge_illumination")
-    t = _check_threshold(threshold)
+    t = check_threshold(threshold)
     mean_lightness = check_positive(mean_lightness, "mean_lightness")
-    pct = _check_percentile(brightest_percentile)
+    pct = check_percentile(brightest_percentile)
     grey = img.ndim == 2
     x = img[..., None] if grey else img
     h, w, nc = x.shape
@@ -244,9 +224,9 @@ def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
     gy *= keep_y[..., None]
 
     sol_mask = None if full else m
-    log_refl = np.stack([solve_gradient_field(gx[..., c], gy[..., c], mask=sol_mask, method=method)
+    log_refl = np.stack([solve_gradient_field(gx[..., c], gy[..., c], mask=sol_mask, method=solver)
                          for c in range(nc)], axis=-1)
-    refl = _anchor(log_refl, m, anchor, mean_lightness, pct)
+    refl = anchor_reflectance(log_refl, m, anchor, mean_lightness, pct)
     if full:
         shading = x / refl
     else:
@@ -257,47 +237,3 @@ def retinex(image, *, threshold: float = 0.05, anchor: str = "brightest",
     return refl, shading
 
 
-def retinex_1d(profile, *, threshold: float = 0.05, anchor: str = "brightest",
-               mean_lightness: float = 0.5, brightest_percentile: float = 100.0):
-    r"""Retinex on a 1-D profile (the chapter's Fig. 1.11).
-
-    ``d_k = log C_{k+1} - log C_k`` is zeroed where ``|d_k| <= threshold`` and integrated
-    exactly, ``l_k = sum_{i<k} d_i`` (in 1-D the least-squares problem has this exact
-    solution); the constant is fixed by ``anchor`` as in :func:`retinex`.  For a (N, C)
-    profile the decision uses the RMS over channels, shared by all channels.
-
-    Parameters
-    ----------
-    profile : (N,) or (N, C) array, > 0
-    threshold, anchor, mean_lightness, brightest_percentile : as in :func:`retinex`.
-
-    Returns
-    -------
-    reflectance, shading : arrays of the profile's shape with ``reflectance * shading == profile``.
-
-    References
-    ----------
-    E. H. Land and J. J. McCann, "Lightness and retinex theory", JOSA 61(1), 1971.
-    """
-    prof = as_float_array(profile, "profile", ndim=(1, 2))
-    check_method(anchor, ANCHORS, "anchor")
-    t = _check_threshold(threshold)
-    mean_lightness = check_positive(mean_lightness, "mean_lightness")
-    pct = _check_percentile(brightest_percentile)
-    if prof.shape[0] < 1:
-        raise ValueError("profile: is empty; pass at least one sample")
-    one = prof.ndim == 1
-    x = prof[:, None] if one else prof
-    check_finite(x, "profile")
-    if np.any(x <= 0):
-        raise ValueError(f"profile: {int(np.sum(np.any(x <= 0, axis=-1)))} sample(s) are <= 0, "
-                         "where the log is undefined; crop or clip the profile to positive values")
-    d = np.diff(np.log(x), axis=0)
-    keep = np.sqrt(np.mean(d * d, axis=-1)) > t
-    d = d * keep[:, None]
-    log_refl = np.concatenate([np.zeros((1, x.shape[1])), np.cumsum(d, axis=0)], axis=0)
-    refl = _anchor(log_refl, np.ones(x.shape[0], dtype=bool), anchor, mean_lightness, pct)
-    shading = x / refl
-    if one:
-        return refl[:, 0], shading[:, 0]
-    return refl, shading

@@ -1,0 +1,63 @@
+"""HDR merging: an exposure bracket and a calibrated response to linear radiance.
+
+Every merge method is a function
+
+    ``fn(images, exposure_times, response, *, return_mask=False, <own options>)``
+
+returning the (H, W, C) float32 radiance, > 0 everywhere and defined up to one global scale
+(plus, with ``return_mask``, the (H, W, C) boolean mask of pixels saturated in every exposure).
+:data:`MERGE_METHODS` maps a method's name to it and :func:`merge_hdr` dispatches by name.
+
+Adding a merge method is one new module in this package (named after its paper, built on the
+shared checks and helpers of :mod:`pbrbench.infer.hdr._common`: ``as_stack``, ``check_times``,
+``check_response``, ``response_table``, ``check_noise_model``, ``estimate_noise``,
+``fill_unexposed``, ``merge_output``) plus one line in :data:`MERGE_METHODS`.
+
+Methods
+-------
+- ``"debevec1997"``: :func:`~pbrbench.infer.hdr.merge.debevec1997.merge_debevec1997`, the
+  weighted log-domain average of Debevec & Malik (1997, eq. 6); its default ``"variance"``
+  weights are the inverse variance of each exposure's log estimate.
+"""
+
+from __future__ import annotations
+
+from pbrbench.checks import call_method
+from pbrbench.infer.hdr.merge.debevec1997 import MERGE_WEIGHTINGS, merge_debevec1997
+
+__all__ = ["MERGE_METHODS", "MERGE_WEIGHTINGS", "merge_debevec1997", "merge_hdr"]
+
+MERGE_METHODS = {
+    "debevec1997": merge_debevec1997,
+}
+
+
+def merge_hdr(images, exposure_times, response, *, method: str = "debevec1997", **options):
+    """Merge an exposure bracket into linear radiance with the merge method ``method``.
+
+    Parameters
+    ----------
+    images : array (K, H, W[, C]) or sequence, unsigned integers
+    exposure_times : sequence of K floats, strictly increasing, seconds (for a
+        ``"mitsunaga1999"`` response, pass ``response.exposure_times``)
+    response : CameraResponse
+        From :func:`pbrbench.infer.hdr.calibrate_response` (or built by hand).
+    method : str
+        A key of :data:`MERGE_METHODS`; the default ``"debevec1997"`` (with its default
+        ``weighting="variance"``) is the merge every earlier version used.
+    **options
+        Options of that method (e.g. ``weighting``, ``noise_model``, ``return_mask`` for
+        ``"debevec1997"``); an option it does not accept raises ``ValueError`` listing those it
+        accepts.
+
+    Returns
+    -------
+    radiance : ndarray (H, W, C) float32, > 0
+    saturated : ndarray (H, W, C) bool, only with ``return_mask=True``
+
+    References
+    ----------
+    P. E. Debevec and J. Malik, "Recovering High Dynamic Range Radiance Maps from Photographs",
+    SIGGRAPH 1997 (the default method).
+    """
+    return call_method(MERGE_METHODS, method, "merge_hdr", images, exposure_times, response, **options)

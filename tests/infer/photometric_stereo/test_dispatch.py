@@ -1,0 +1,64 @@
+"""The photometric-stereo dispatcher and METHODS table (pbrbench.infer.photometric_stereo)."""
+
+import numpy as np
+import pytest
+
+from pbrbench.infer.photometric_stereo import (
+    METHODS,
+    photometric_stereo,
+    photometric_stereo_ikehata2012_l1,
+    photometric_stereo_woodham1980,
+)
+from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
+from pbrbench.shading.surfaces import on_grid
+
+
+@pytest.fixture(scope="module")
+def glossy():
+    s = on_grid("sphere", 40, half_width=1.05)
+    lights = ring_lights(12)
+    imgs = lambertian_images(s.normals, 0.8, lights, mask=s.mask)
+    imgs = imgs + blinn_phong_highlights(s.normals, lights, 100.0, mask=s.mask)
+    return imgs, lights, s.mask
+
+
+def test_table():
+    assert METHODS == {"woodham1980": photometric_stereo_woodham1980,
+                       "ikehata2012_l1": photometric_stereo_ikehata2012_l1}
+
+
+@pytest.mark.parametrize("name", list(METHODS))
+def test_dispatch_equals_the_method(glossy, name):
+    imgs, lights, mask = glossy
+    a = photometric_stereo(imgs, lights, mask=mask, method=name)
+    b = METHODS[name](imgs, lights, mask=mask)
+    for f in ("normals", "albedo", "residual", "n_used", "valid"):
+        np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
+    if name == "woodham1980":
+        np.testing.assert_array_equal(photometric_stereo(imgs, lights, mask=mask).normals, a.normals)
+
+
+def test_unknown_method(glossy):
+    imgs, lights, _ = glossy
+    with pytest.raises(ValueError, match="method='svd' is not known; choose one of 'woodham1980', 'ikehata2012_l1'"):
+        photometric_stereo(imgs, lights, method="svd")
+
+
+def test_option_the_method_does_not_accept(glossy):
+    imgs, lights, _ = glossy
+    with pytest.raises(ValueError, match=r"photometric_stereo\(method='woodham1980'\): unknown option\(s\) max_iter; "
+                                         r"woodham1980 accepts mask, intensities, shadow_threshold, saturation, "
+                                         r"min_lights$"):
+        photometric_stereo(imgs, lights, max_iter=10)
+    with pytest.raises(ValueError, match=r"unknown option\(s\) shadow; ikehata2012_l1 accepts .*max_iter"):
+        photometric_stereo(imgs, lights, method="ikehata2012_l1", shadow=0.1)
+
+
+def test_forwarded_option_changes_the_result(glossy):
+    imgs, lights, mask = glossy
+    a = photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1")
+    b = photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1", max_iter=1)
+    assert not np.array_equal(a.normals, b.normals)
+    c = photometric_stereo(imgs, lights, mask=mask, shadow_threshold=0.3)
+    assert (c.n_used[mask] <= photometric_stereo(imgs, lights, mask=mask).n_used[mask]).all()
+    assert not np.array_equal(c.normals, photometric_stereo(imgs, lights, mask=mask).normals)
