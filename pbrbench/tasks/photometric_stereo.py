@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pbrbench.infer.integration import METHODS as INTEGRATION_METHODS
 from pbrbench.infer.integration import integrate_normals
 from pbrbench.infer.photometric_stereo import METHODS as PS_METHODS
 from pbrbench.infer.photometric_stereo import photometric_stereo
@@ -56,7 +57,7 @@ FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", 
 REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
 NOISE = 0.01
 NAIVE = "baseline:naive_lstsq_all_lights"
-INTEGRATORS = ("lsq", "path", "frankot_chellappa", "dct")
+INTEGRATORS = tuple(INTEGRATION_METHODS)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
 # albedo values kept per swept family, by quality (first and last, then evenly spaced); a
 # quality not listed keeps the whole sweep.  Reflex families keep one more at draft.

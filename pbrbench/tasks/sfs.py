@@ -25,7 +25,7 @@ free offset (world units, ``height_rmse``, ``height_mae``), the same after the b
 aware ``height_rmse_flip`` and ``normal_mean_deg_flip`` (the better of ``z`` and ``-z``: under a
 frontal light both give the same image), ``converged`` (1 when the method met its tolerance; the
 only higher-is-better score), ``failed`` (1 when the method raised ``ValueError`` for this input;
-then it has no other score; ``fast_marching`` without a singular point no longer raises but seeds
+then it has no other score; ``kimmel2001`` without a singular point no longer raises but seeds
 the brightest pixels with a warning)
 and, for the light estimate, ``light_error_deg``.  The floor uses the
 SFS methods' own integrator (:func:`pbrbench.metrics.sfs.floor_scores`).
