@@ -1,4 +1,4 @@
-r"""Scores for shape from one shaded image (SCIENCE.md §7).
+r"""Scores for shape from one shaded image (the model of :mod:`pbrbench.infer.sfs`).
 
 Height errors are computed after removing the free offset (``offset``) and, reported
 separately, after the best affine fit ``a z + b`` (``scale_offset``; least squares over the mask),
@@ -119,14 +119,14 @@ def floor_height(true_normals, mask=None, *, pixel_size: float = 1.0) -> np.ndar
 def floor_scores(true_height, true_normals, mask=None, *, pixel_size: float = 1.0) -> dict:
     """Scores of the floor: height errors of :func:`floor_height` and the mean angle of the
     normals recomputed from that height by central differences (as for height-based methods)."""
-    from pbrbench.infer.sfs import _normals_from_pq, _pq_from_height  # noqa: PLC0415
+    from pbrbench.infer.integration import gradients_from_height, normals_from_gradients  # noqa: PLC0415
 
     h = check_positive(pixel_size, "pixel_size")
     m = check_mask(mask, np.shape(true_height))
     z = floor_height(true_normals, m, pixel_size=h)
     out = height_errors(z, true_height, m)
-    p, q = _pq_from_height(z / h, m)
-    out["normal_angle"] = normal_angle(_normals_from_pq(p, q, m), true_normals, m)
+    p, q = gradients_from_height(z, m, pixel_size=h)
+    out["normal_angle"] = normal_angle(normals_from_gradients(p, q, m), true_normals, m)
     return out
 
 

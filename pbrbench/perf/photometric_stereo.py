@@ -25,6 +25,7 @@ import time
 
 import numpy as np
 
+from pbrbench.infer.integration import METHODS as INTEGRATION_METHODS
 from pbrbench.infer.integration import integrate_normals
 from pbrbench.infer.photometric_stereo import photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field
@@ -102,7 +103,7 @@ def _integration_rows(size):
         s = on_grid(name, size, hw)
         m = s.mask & notched_mask(size, hw) if notch else s.mask
         case = f"{name} {size}x{size} {'notched mask' if notch else 'silhouette mask'}"
-        for method in ("lsq", "path", "frankot_chellappa", "dct"):
+        for method in INTEGRATION_METHODS:
             z = integrate_normals(s.normals, mask=m, method=method, pixel_size=2 * hw / size)
             rows.append(_row(case, method, "height_rmse_pct_range",
                              100 * height_rmse(z, s.z, m) / np.ptp(s.z[m]), "%"))

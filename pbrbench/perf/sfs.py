@@ -1,5 +1,5 @@
 """Shape from one shaded image: every method on analytic surfaces, beside the flat baseline and the
-floor (SCIENCE.md §7).
+floor (the methods of :mod:`pbrbench.infer.sfs`).
 
 Cases: {sphere, vase} x light {frontal (0,0,1) [sphere only], oblique (1,0,1)/sqrt 2} x
 {known light, light estimated by ``light_from_shading``} x noise {0, 1 % of the peak}, at

@@ -1,41 +1,41 @@
-"""Surface integration: from a normal field (or surface gradients) to a height map.
+r"""Gradient fields of surfaces: normals <-> slopes, slopes of a height map, integrability.
 
-Frame of SCIENCE.md §0: x right, y up, z toward the camera; row 0 is the top, so ``y``
-decreases with the row index. A Monge patch ``z = f(x, y)`` has unit normal
-``N = (-f_x, -f_y, 1)/|.|``, hence ``p = f_x = -N_x/N_z`` and ``q = f_y = -N_y/N_z``.
-On the pixel grid (pixel size ``h``), moving one column right changes the height by about
-``h p`` and moving one row *down* by about ``-h q``.
+Frame (``docs/conventions.md``): x right, y up, z toward the camera; row 0 is the top, so ``y``
+decreases with the row index.  A Monge patch ``z = f(x, y)`` has unit normal
 
-Methods of :func:`integrate_normals`:
+.. math:: N = \frac{(-f_x, -f_y, 1)}{\sqrt{1 + f_x^2 + f_y^2}},
 
-- ``"path"``: the chapter's algorithm (Forsyth & Ponce, Algorithm 1.2): the top-left pixel is
-  zero, integrate ``q`` down the left column, then ``p`` along every row.
-- ``"frankot_chellappa"``: projection onto integrable Fourier functions (periodic rectangle).
-- ``"dct"``: least squares on the full rectangle with Neumann boundary (DCT Poisson solve).
-- ``"lsq"``: least squares on the masked, non-rectangular domain (default; AMG-preconditioned
-  conjugate gradients from :mod:`pbrbench.infer.poisson`).
+hence ``p = f_x = -N_x/N_z`` and ``q = f_y = -N_y/N_z``.  On the pixel grid (pixel size ``h``),
+moving one column right changes the height by about ``h p`` and moving one row *down* by about
+``-h q``.
 
-The three rectangle methods (``path``, ``frankot_chellappa``, ``dct``) set the gradients outside
-the mask to 0 and integrate over the whole image; only ``lsq`` respects the domain.
+Objects
+-------
+normals_to_gradients
+    ``(p, q, valid)`` of a normal field.
+normals_from_gradients
+    Unit normals of slopes ``(p, q)``.
+gradients_from_height
+    Slopes of a height map by masked central differences.
+integrability_residual
+    ``dp/dy - dq/dx``, the chapter's integrability check.
+
+The private helpers (``_prepare``, ``_edge_gradients``) are the input handling every integrator
+of :mod:`pbrbench.infer.integration` shares.
+
+References
+----------
+D. Forsyth and J. Ponce, *Computer Vision: A Modern Approach*, chapter "Light and Shading",
+Algorithm 1.2 (photometric stereo with the integrability check).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import scipy.fft
 
-from pbrbench.checks import (
-    as_float_array,
-    check_finite,
-    check_mask,
-    check_method,
-    check_positive,
-)
-from pbrbench.infer.poisson import solve_gradient_field
+from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
 
-__all__ = ["normals_to_gradients", "integrability_residual", "integrate_normals", "METHODS"]
-
-METHODS = ("lsq", "path", "frankot_chellappa", "dct")
+__all__ = ["normals_to_gradients", "normals_from_gradients", "gradients_from_height", "integrability_residual"]
 
 
 def _check_normals(normals, name="normals"):
@@ -172,8 +172,22 @@ def integrability_residual(normals=None, mask=None, *, gradients=None, pixel_siz
     return np.where(m, dp_dy - dq_dx, 0.0)
 
 
+def _prepare(normals, gradients, mask, pixel_size):
+    """The common input step of every integrator: ``(p, q, domain, h)`` (gradients 0 outside)."""
+    p, q, m = _gradients_from_input(normals, gradients, mask)
+    if not m.any():
+        raise ValueError("mask: no pixel has a usable normal (N_z > 1e-3); check the normals' frame (z toward the camera)")
+    h = check_positive(pixel_size, "pixel_size")
+    return p, q, m, h
+
+
 def _edge_gradients(p, q, m, h):
-    """Forward differences in index coordinates: trapezoid average of the two pixels' slopes."""
+    """Forward differences in index coordinates: trapezoid average of the two pixels' slopes.
+
+    ``gx[i, j] = h (p[i, j] + p[i, j+1]) / 2`` (one column right) and
+    ``gy[i, j] = -h (q[i, j] + q[i+1, j]) / 2`` (one row down is ``-y``), the right-hand side
+    of :func:`pbrbench.infer.poisson.solve_gradient_field`.
+    """
     gx = np.zeros_like(p)
     gy = np.zeros_like(p)
     gx[:, :-1] = 0.5 * h * (p[:, :-1] + p[:, 1:])
@@ -181,87 +195,96 @@ def _edge_gradients(p, q, m, h):
     return gx, gy
 
 
-def _path(gx, gy):
-    z = np.zeros_like(gx)
-    z[1:, 0] = np.cumsum(gy[:-1, 0])
-    z[:, 1:] = z[:, :1] + np.cumsum(gx[:, :-1], axis=1)
-    return z
-
-
-def _frankot_chellappa(p, q, h):
-    rows, cols = p.shape
-    gx = h * p        # derivative along columns (per pixel)
-    gy = -h * q       # derivative along rows (rows go down)
-    wx = 2 * np.pi * scipy.fft.fftfreq(cols)[None, :]
-    wy = 2 * np.pi * scipy.fft.fftfreq(rows)[:, None]
-    den = wx**2 + wy**2
-    den[0, 0] = 1.0
-    zf = (-1j * wx * scipy.fft.fft2(gx) - 1j * wy * scipy.fft.fft2(gy)) / den
-    zf[0, 0] = 0.0
-    return np.real(scipy.fft.ifft2(zf))
-
-
-def integrate_normals(normals=None, *, gradients=None, mask=None, method: str = "lsq",
-                      pixel_size: float = 1.0, tol: float = 1e-8) -> np.ndarray:
-    r"""Height map ``z`` (up to a constant) whose gradients best match a normal field.
-
-    The least-squares methods solve
-
-    .. math:: \min_z \int_\Omega (z_x - p)^2 + (z_y - q)^2 \,dx\,dy,
-
-    with ``p = -N_x/N_z``, ``q = -N_y/N_z``, whose Euler-Lagrange equation is the Poisson equation
-    ``\nabla^2 z = p_x + q_y`` with natural boundary conditions on the border of ``\Omega``.
+def normals_from_gradients(p, q, mask=None) -> np.ndarray:
+    r"""Unit normals ``N = (-p, -q, 1) / sqrt(1 + p^2 + q^2)`` of slopes ``p = f_x``, ``q = f_y``.
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)``, ``p = f_x``, ``q = f_y`` in the y-up frame, given instead of ``normals``.
+    p, q : (H, W) arrays
+        Slopes in the y-up frame (unitless: height and ``x``, ``y`` in the same units).
     mask : (H, W) bool, optional
-        Domain. Default: the pixels with a finite, non-zero normal (finite ``p``, ``q``).
-        Pixels with ``N_z <= 1e-3`` are dropped from the domain.
-    method : {"lsq", "path", "frankot_chellappa", "dct"}
-        ``"lsq"`` (default): least squares on the masked domain, AMG-preconditioned conjugate
-        gradients (Agrawal, Raskar & Chellappa, "What is the range of surface reconstructions
-        from a gradient field?", ECCV 2006). ``"path"``: the chapter's path integration
-        (Forsyth & Ponce, "Light and Shading", Algorithm 1.2) with trapezoid steps.
-        ``"frankot_chellappa"``: Frankot & Chellappa, "A method for enforcing integrability in
-        shape from shading algorithms", IEEE TPAMI 10(4), 1988 (FFT, periodic rectangle).
-        ``"dct"``: Neumann Poisson on the rectangle by DCT (Simchony, Chellappa & Shao, IEEE
-        TPAMI 1990). The last three zero the gradients outside the mask and integrate over the
-        whole rectangle, which biases the result on non-rectangular domains.
-    pixel_size : float
-        World size of one pixel; the height is returned in the same world units.
-    tol : float
-        Relative residual tolerance of the ``"lsq"`` iterative solver.
+        Pixels to fill (default: all); the normal is (0, 0, 0) outside.
 
     Returns
     -------
-    z : (H, W) float64
-        Height with mean zero over the domain (per connected component for ``"lsq"``); 0 outside.
+    (H, W, 3) float64
+        Unit normals in the camera frame.
 
     Raises
     ------
     ValueError
-        On an unknown method, both or neither of ``normals`` / ``gradients``, bad shapes, a
-        mismatched mask, non-finite values in the mask, or a non-positive ``pixel_size``.
+        If ``p`` and ``q`` are not 2-D arrays of one shape, the mask does not match, or a slope
+        inside the mask is not finite.
     """
-    check_method(method, METHODS)
-    p, q, m = _gradients_from_input(normals, gradients, mask)
-    if not m.any():
-        raise ValueError("mask: no pixel has a usable normal (N_z > 1e-3); check the normals' frame (z toward the camera)")
+    p = as_float_array(p, "p", ndim=(2,))
+    q = as_float_array(q, "q", ndim=(2,))
+    if p.shape != q.shape:
+        raise ValueError(f"q: shape {q.shape} differs from p's {p.shape}; pass two (H, W) arrays of one shape")
+    m = check_mask(mask, p.shape)
+    check_finite(p, "p", where=m)
+    check_finite(q, "q", where=m)
+    n = np.stack([-p, -q, np.ones_like(p)], axis=-1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    n[~m] = 0.0
+    return n
+
+
+def gradients_from_height(z, mask=None, *, pixel_size: float = 1.0):
+    """Slopes ``p = f_x``, ``q = f_y`` of a height map by central differences inside ``mask``.
+
+    One-sided (forward or backward) differences where a neighbour lies outside ``mask`` or the
+    image, 0 where a pixel has no neighbour inside along that axis.  ``y`` is up, so
+    ``f_y = -dz/drow``.
+
+    Parameters
+    ----------
+    z : (H, W) array
+        Height in world units (values outside ``mask`` are ignored).
+    mask : (H, W) bool, optional
+        Domain (default: the whole image).
+    pixel_size : float
+        World size of one pixel; the slopes are ``dz / (pixel_size * pixels)``.
+
+    Returns
+    -------
+    p, q : (H, W) float64
+        The slopes, 0 outside ``mask``.
+
+    Raises
+    ------
+    ValueError
+        On a non-2-D ``z``, a mismatched mask, a non-finite height inside the mask or a
+        non-positive ``pixel_size``.
+    """
+    z = as_float_array(z, "z", ndim=(2,))
+    m = check_mask(mask, z.shape)
+    check_finite(z, "z", where=m)
     h = check_positive(pixel_size, "pixel_size")
-    if method == "lsq":
-        gx, gy = _edge_gradients(p, q, m, h)
-        return solve_gradient_field(gx, gy, mask=m, tol=tol, method="auto")
-    if method == "path":
-        gx, gy = _edge_gradients(p, q, m, h)
-        z = _path(gx, gy)
-    elif method == "dct":
-        gx, gy = _edge_gradients(p, q, m, h)
-        z = solve_gradient_field(gx, gy, method="dct")
-    else:
-        z = _frankot_chellappa(p, q, h)
-    z = z - z[m].mean()
-    return np.where(m, z, 0.0)
+    if h != 1.0:
+        z = z / h
+
+    def deriv(axis):
+        zf = np.where(m, z, 0.0)
+        plus = np.roll(zf, -1, axis)
+        minus = np.roll(zf, 1, axis)
+        mp = np.roll(m, -1, axis)
+        mm = np.roll(m, 1, axis)
+        n = z.shape[axis]
+        idx = np.arange(n)
+        edge_hi = (idx == n - 1)
+        edge_lo = (idx == 0)
+        shape = [1, 1]
+        shape[axis] = n
+        mp = mp & ~edge_hi.reshape(shape)
+        mm = mm & ~edge_lo.reshape(shape)
+        both = mp & mm
+        d = np.zeros_like(z)
+        d[both] = (plus[both] - minus[both]) / 2.0
+        fwd = mp & ~mm
+        d[fwd] = plus[fwd] - zf[fwd]
+        bwd = mm & ~mp
+        d[bwd] = zf[bwd] - minus[bwd]
+        return d
+    p = deriv(1)
+    q = -deriv(0)  # y up: f_y = -d/d(row)
+    return np.where(m, p, 0.0), np.where(m, q, 0.0)

@@ -1,0 +1,84 @@
+"""Tests of Horn's (1989) height-and-gradient scheme (``pbrbench.infer.sfs.horn1989``)."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from pbrbench.infer.sfs import occluding_boundary, shape_from_shading, shape_from_shading_horn1989
+from pbrbench.metrics.sfs import normal_angle
+from pbrbench.shading.lambert import lambertian_images
+from pbrbench.shading.surfaces import on_grid
+from tests.infer.sfs._scenes import HW, OBLIQUE, scene
+
+
+def test_horn_is_accurate_on_oblique_sphere():
+    s, img, h = scene("sphere", 64, OBLIQUE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        hn = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=s.mask, pixel_size=h, max_iter=100)
+    assert normal_angle(hn.normals, s.normals, s.mask) < 15.0
+    assert hn.method == "horn1989"
+
+
+def test_horn_coarse_to_fine_sweeps_reported():
+    s, img, h = scene("sphere", 64, OBLIQUE)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=s.mask, pixel_size=h, max_iter=30)
+    # n_iter counts sweeps on the finest grid; coarser grids add theirs to total_sweeps
+    assert r.n_iter <= 30 and r.info["total_sweeps"] > r.n_iter
+    assert np.isfinite(r.info["final_update"])
+
+
+def test_iteration_budget_exhausted_warns_without_nan():
+    s, img, h = scene("sphere", 48, OBLIQUE)
+    with pytest.warns(RuntimeWarning, match="horn1989"):
+        r = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=s.mask, max_iter=2, tol=1e-12)
+    assert not r.converged and r.n_iter == 2
+    assert np.all(np.isfinite(r.height))
+
+
+def test_horn_auto_boundary_ignores_a_cut_edge():
+    # a random smooth surface cut by a disc: its edge is no occluding contour; fixing contour
+    # slopes there (boundary="occluding") ruins the solve, "auto" detects it and uses none
+    n = 96
+    s = on_grid("random_smooth", n, half_width=HW)
+    yy, xx = np.mgrid[:n, :n]
+    m = s.mask & ((yy - n / 2) ** 2 + (xx - n / 2) ** 2 < (0.45 * n) ** 2)
+    img = np.where(m, lambertian_images(s.normals, 0.8, OBLIQUE[None])[0], 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        auto = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=m, pixel_size=2 * HW / n)
+        occ = shape_from_shading(img, OBLIQUE, method="horn1989", albedo=0.8, mask=m, pixel_size=2 * HW / n,
+                                 boundary="occluding")
+        sph, simg, h = scene("sphere", n, OBLIQUE)
+        sp = shape_from_shading(simg, OBLIQUE, method="horn1989", albedo=0.8, mask=sph.mask, pixel_size=h)
+    assert auto.info["n_boundary"] == 0 and occ.info["n_boundary"] > 0
+    assert normal_angle(auto.normals, s.normals, m) < 15.0 < normal_angle(occ.normals, s.normals, m)
+    # on a sphere the whole silhouette is a contour and "auto" keeps (nearly) all of it
+    assert sp.info["n_boundary"] > 0.9 * occluding_boundary(sph.mask).sum()
+
+
+def test_boundary_array_fixes_exactly_those_pixels():
+    s, img, h = scene("sphere", 32, OBLIQUE)
+    b = occluding_boundary(s.mask)
+    b[: 16] = False  # the lower half of the silhouette only
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = shape_from_shading_horn1989(img, OBLIQUE, albedo=0.8, mask=s.mask, pixel_size=h, boundary=b,
+                                        max_iter=5, levels=1)
+        free = shape_from_shading_horn1989(img, OBLIQUE, albedo=0.8, mask=s.mask, pixel_size=h, boundary="free",
+                                           max_iter=5, levels=1)
+    assert r.info["n_boundary"] == b.sum() and free.info["n_boundary"] == 0
+
+
+@pytest.mark.parametrize(("kwargs", "match"), [
+    ({"max_iter": 0}, "max_iter"), ({"tol": 0.0}, "tol"), ({"boundary": "wrong"}, "boundary"),
+    ({"boundary": np.ones((8, 8), bool)}, "boundary"), ({"theta_max_deg": 90.0}, "theta_max_deg"),
+    ({"smoothness": -1.0}, "smoothness"), ({"smoothness_min": 0.0}, "smoothness_min"),
+    ({"integrability": 0.0}, "integrability"), ({"n_stages": 1.5}, "n_stages"), ({"levels": 0}, "levels"),
+])
+def test_option_errors(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        shape_from_shading_horn1989(np.full((16, 16), 0.5), [0.3, 0.0, 1.0], **kwargs)
