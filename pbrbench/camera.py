@@ -1,6 +1,6 @@
 """A simulated digital camera that turns linear radiance into an exposure bracket.
 
-The forward model (SCIENCE.md §4), per pixel, channel ``c`` and exposure ``k``::
+The forward model (docs/science.md §4), per pixel, channel ``c`` and exposure ``k``::
 
     x      = gain * L * t_k'                       (normalised sensor exposure; x = 1 clips)
     x      <- Poisson(x * full_well) / full_well   (shot noise, only when ``full_well`` is set)

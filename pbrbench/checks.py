@@ -15,6 +15,8 @@ unknown option with the list of that method's options.
 from __future__ import annotations
 
 import inspect
+import sys
+import warnings
 from collections.abc import Callable, Iterable, Mapping
 
 import numpy as np
@@ -149,7 +151,8 @@ def call_method(methods: Mapping[str, Callable], method: str, problem: str, *arg
 
     ``problem`` names the dispatcher in messages (e.g. ``"shape_from_shading"``).  An option the
     chosen method does not accept raises ``ValueError`` listing the options it does accept, so a
-    misspelt or misplaced option never goes silently unused.
+    misspelt or misplaced option never goes silently unused.  Warnings the method issues are
+    re-issued at the line that called the dispatcher (not inside pbrbench).
     """
     check_method(method, methods)
     fn = methods[method]
@@ -158,4 +161,16 @@ def call_method(methods: Mapping[str, Callable], method: str, problem: str, *arg
     if unknown:
         raise ValueError(f"{problem}(method={method!r}): unknown option(s) {', '.join(unknown)}; "
                          f"{method} accepts {', '.join(accepted) or 'no options'}")
-    return fn(*args, **options)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        out = fn(*args, **options)
+    if caught:
+        caller = sys._getframe(2) if hasattr(sys, "_getframe") else None
+        for w in caught:
+            if caller is None:
+                warnings.warn(w.message, w.category, stacklevel=3)
+                continue
+            g = caller.f_globals
+            warnings.warn_explicit(w.message, w.category, caller.f_code.co_filename, caller.f_lineno,
+                                   module=g.get("__name__"), registry=g.setdefault("__warningregistry__", {}))
+    return out

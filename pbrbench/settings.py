@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent
@@ -51,6 +51,9 @@ ENV = {
     "worker_threads": "PBRBENCH_WORKER_THREADS", "llvm_search": "PBRBENCH_LLVM_SEARCH",
     "no_cuda": "PBRBENCH_NO_CUDA",
 }
+
+
+ARG_FIELDS = ("cache", "out", "store", "variant")   # settings the command line can give
 
 
 @dataclass(frozen=True)
@@ -98,13 +101,13 @@ class Settings:
 
     @classmethod
     def resolve(cls, args=None, env: Mapping[str, str] | None = None) -> Settings:
-        """From parsed command-line ``args`` (attributes named like the fields; None = not given),
-        then the environment, then the defaults."""
+        """From parsed command-line ``args`` (``--cache``, ``--out``, ``--store``, ``--variant``;
+        None = not given), then the environment, then the defaults."""
         over = {}
-        for f in fields(cls):
-            v = getattr(args, f.name, None) if args is not None else None
+        for name in ARG_FIELDS:
+            v = getattr(args, name, None) if args is not None else None
             if v is not None:
-                over[f.name] = v
+                over[name] = v
         return cls.from_env(env, **over)
 
     def with_(self, **changes) -> Settings:

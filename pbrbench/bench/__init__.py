@@ -3,9 +3,8 @@
 :mod:`.run` (orchestration, store, regression check, report); :mod:`.store` is the SQLite results
 store and :mod:`.regress` the regression baselines."""
 
-from pbrbench.bench.plan import plan
 from pbrbench.bench.run import RunConfig, RunOutcome, run_benchmark
 from pbrbench.bench.source import GroundTruthSource
 from pbrbench.bench.store import Store
 
-__all__ = ["GroundTruthSource", "RunConfig", "RunOutcome", "Store", "plan", "run_benchmark"]
+__all__ = ["GroundTruthSource", "RunConfig", "RunOutcome", "Store", "run_benchmark"]

@@ -11,7 +11,7 @@ tolerance.  The tolerance is *measured*, not guessed:
 ``K = 3`` leaves room for seeds that were not sampled; the floor (1e-6 absolute plus 0.1 %
 relative) only covers floating-point differences between machines (BLAS, compilers) for
 metrics that do not depend on the seed at all (the ground truth is bit-reproducible: box
-filter and fixed render seed, notes/mitsuba.md §6).  The value kept is that of the run with the
+filter and fixed render seed, docs/rendering.md).  The value kept is that of the run with the
 base seed, which the regression suite reproduces.
 
 A score *regresses* when it moved in the worse direction by more than its tolerance (a value

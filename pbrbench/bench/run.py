@@ -235,11 +235,12 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
             outcome.comparison = regress.compare(outcome.scores, baselines)
             store.set_comparison(run_id, dict(comparison_record(outcome.comparison), baseline=str(bpath),
                                               baseline_quality=baselines.get("quality")))
-        store.export_json(run_id, run_dir / "scores.json")
+        # the exported scores and the report show the final status; the store takes it last
+        store.export_json(run_id, run_dir / "scores.json", status=final)
         if cfg.report:
             from pbrbench.report.html import write_report
 
-            outcome.report = write_report(store, run_id, out_dir=run_dir)
+            outcome.report = write_report(store, run_id, out_dir=run_dir, status=final)
         status = final
     except KeyboardInterrupt:
         status = "interrupted"

@@ -387,16 +387,20 @@ class Store:
         return [dict(r) for r in self.conn.execute(q, args)]
 
     # ------------------------------------------------------------------ export
-    def export_run(self, run_id: str) -> dict:
+    def export_run(self, run_id: str, *, status: str | None = None) -> dict:
+        """The run, its scores, ground truths and job errors (``status``: the status to show, when
+        the run is about to take it)."""
         run = self.get_run(run_id)
         if run is None:
             raise KeyError(run_id)
+        if status is not None:
+            run["status"] = status
         return {"schema_version": SCHEMA_VERSION, "run": run, "scores": self.scores(run_id),
                 "ground_truths": self.ground_truths(run_id), "job_errors": self.job_errors(run_id)}
 
-    def export_json(self, run_id: str, path: str | os.PathLike) -> Path:
+    def export_json(self, run_id: str, path: str | os.PathLike, *, status: str | None = None) -> Path:
         """Write the run and its scores as JSON (NaN written as null)."""
-        data = self.export_run(run_id)
+        data = self.export_run(run_id, status=status)
         for s in data["scores"]:
             for k in ("value", "uncertainty"):
                 if isinstance(s.get(k), float) and not math.isfinite(s[k]):

@@ -11,7 +11,7 @@ An equation is used only when both of its pixels lie inside ``mask`` and its wei
 Its normal equations are the weighted graph-Laplacian (discrete Poisson) system
 ``L u = D^T W g`` with natural (Neumann) boundary conditions on the border of the domain.
 
-Conversion from surface gradients ``p = f_x``, ``q = f_y`` (y up, SCIENCE.md §0) sampled with
+Conversion from surface gradients ``p = f_x``, ``q = f_y`` (y up, docs/conventions.md) sampled with
 pixel size ``h``: ``gx = h p`` (averaged to the edge between the two pixels) and ``gy = -h q``
 (rows go down while y goes up).
 

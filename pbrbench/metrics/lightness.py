@@ -1,4 +1,4 @@
-"""Scores for lightness / intrinsic-image estimates (SCIENCE.md §5).
+"""Scores for lightness / intrinsic-image estimates (docs/science.md §5).
 
 Objects
 -------

@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
+from pbrbench.metrics.table import table
 
 __all__ = [
     "height_errors",
@@ -90,14 +91,27 @@ def normal_angle(normals, true_normals, mask=None) -> float:
     return float(np.degrees(np.arccos(c)).mean())
 
 
-def flat_baseline(true_height, true_normals, mask=None) -> dict:
+_NAMES = {"rmse": "height_rmse", "mae": "height_mae", "rmse_scaled": "height_rmse_scaled",
+          "mae_scaled": "height_mae_scaled", "normal_angle": "normal_mean_deg"}
+
+
+def _named(scores: dict, height_range: float | None) -> dict:
+    """Score names of the metrics table (``height_rmse`` ...), plus ``height_rmse_rel`` when the
+    true height range is given."""
+    out = {_NAMES[k]: float(v) for k, v in scores.items() if k in _NAMES}
+    if height_range and "height_rmse" in out:
+        out["height_rmse_rel"] = out["height_rmse"] / float(height_range)
+    return out
+
+
+def flat_baseline(true_height, true_normals, mask=None, *, height_range: float | None = None) -> dict:
     """Scores of the flat surface (height constant, normals (0, 0, 1)): the "no shape" baseline."""
     t = as_float_array(true_height, "true_height", ndim=(2,))
     flat_n = np.zeros(t.shape + (3,))
     flat_n[..., 2] = 1.0
     out = height_errors(np.zeros_like(t), t, mask)
     out["normal_angle"] = normal_angle(flat_n, true_normals, mask)
-    return out
+    return _named(out, height_range)
 
 
 def floor_height(true_normals, mask=None, *, pixel_size: float = 1.0) -> np.ndarray:
@@ -116,7 +130,8 @@ def floor_height(true_normals, mask=None, *, pixel_size: float = 1.0) -> np.ndar
     return integrate_gradients(p, q, mask=m, pixel_size=check_positive(pixel_size, "pixel_size"))
 
 
-def floor_scores(true_height, true_normals, mask=None, *, pixel_size: float = 1.0) -> dict:
+def floor_scores(true_height, true_normals, mask=None, *, pixel_size: float = 1.0,
+                 height_range: float | None = None) -> dict:
     """Scores of the floor: height errors of :func:`floor_height` and the mean angle of the
     normals recomputed from that height by central differences (as for height-based methods)."""
     from pbrbench.infer.integration import gradients_from_height, normals_from_gradients  # noqa: PLC0415
@@ -127,7 +142,7 @@ def floor_scores(true_height, true_normals, mask=None, *, pixel_size: float = 1.
     out = height_errors(z, true_height, m)
     p, q = gradients_from_height(z, m, pixel_size=h)
     out["normal_angle"] = normal_angle(normals_from_gradients(p, q, m), true_normals, m)
-    return out
+    return _named(out, height_range)
 
 
 def ambiguity_aware_scores(height, normals, true_height, true_normals, mask=None) -> dict:
@@ -155,12 +170,28 @@ def ambiguity_aware_scores(height, normals, true_height, true_normals, mask=None
     }
 
 
-def sfs_scores(height, normals, true_height, true_normals, mask=None) -> dict:
-    """All scores of one estimate: :func:`height_errors` keys plus ``normal_angle`` and the
-    ambiguity-aware ``rmse_ambiguous`` / ``normal_angle_ambiguous``."""
+def sfs_scores(height, normals, true_height, true_normals, mask=None, *, height_range: float | None = None) -> dict:
+    """All scores of one estimate, named as in :data:`METRICS`: the :func:`height_errors` of the
+    height (``height_rmse``, ``height_mae``, ``height_rmse_scaled``, ``height_mae_scaled``), the
+    mean normal angle (``normal_mean_deg``), the ambiguity-aware ``height_rmse_flip`` /
+    ``normal_mean_deg_flip`` and, given the true height range, ``height_rmse_rel``."""
     out = height_errors(height, true_height, mask)
     out["normal_angle"] = normal_angle(normals, true_normals, mask)
+    out = _named(out, height_range)
     amb = ambiguity_aware_scores(height, normals, true_height, true_normals, mask)
-    out["rmse_ambiguous"] = amb["rmse"]
-    out["normal_angle_ambiguous"] = amb["normal_angle"]
+    out["height_rmse_flip"] = float(amb["rmse"])
+    out["normal_mean_deg_flip"] = float(amb["normal_angle"])
     return out
+
+
+METRICS = table(
+    ("height_rmse", "lower", "world units", "height RMSE after removing the free offset", "sfs_scores"),
+    ("height_mae", "lower", "world units", "mean absolute height error after removing the free offset", "sfs_scores"),
+    ("height_rmse_scaled", "lower", "world units", "height RMSE after the best scale and offset", "sfs_scores"),
+    ("height_mae_scaled", "lower", "world units", "mean absolute height error after the best scale and offset", "sfs_scores"),
+    ("height_rmse_rel", "lower", "fraction", "height RMSE relative to the true height range", "sfs_scores"),
+    ("normal_mean_deg", "lower", "deg", "mean angle between estimated and true normals", "sfs_scores"),
+    ("height_rmse_flip", "lower", "world units", "height RMSE of the better of z and -z (convex/concave ambiguity)", "ambiguity_aware_scores"),
+    ("normal_mean_deg_flip", "lower", "deg", "mean normal angle of the better of z and -z", "ambiguity_aware_scores"),
+    ("light_error_deg", "lower", "deg", "angle between the estimated and the true light direction", ""),
+)

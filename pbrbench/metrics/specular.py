@@ -1,4 +1,4 @@
-"""Scores for specularity detection and removal (SCIENCE.md §1).
+"""Scores for specularity detection and removal (docs/science.md §1).
 
 The ground truth comes from a *diffuse-only twin*: the same scene rendered with the glossy
 lobe switched off.  ``radiance - diffuse_only`` is the specular component.

@@ -7,10 +7,10 @@ whose mean is the image and whose difference estimates its Monte Carlo noise):
 * ``direct``: ``max_depth = 2``; ``indirect = radiance - direct`` (same seeds, so in LLVM the two
   renders share their first bounce and the difference is low-variance);
 * ``light{k}.radiance`` / ``light{k}.direct``: one light of the light set in the scene at a time
-  (never zeroed lights: notes/mitsuba.md §2.4);
+  (never zeroed lights: docs/rendering.md);
 * ``unoccluded_fraction`` (scenes with occluders): direct / direct-without-occluders;
 * ``diffuse_only`` (scenes with glossy materials): the twin with every coating removed;
-* AOVs (a separate pass, notes §2.1): ``albedo``, ``normals`` (camera frame of SCIENCE.md §0:
+* AOVs (a separate pass, docs/rendering.md): ``albedo``, ``normals`` (camera frame of docs/conventions.md:
   x right, y up, z toward the camera), ``position`` (world), ``depth`` (along the view axis, from
   the position AOV, not Mitsuba's depth AOV), ``coverage`` and ``mask`` (pure pixels: fully covered by
   geometry and not on a boundary between two objects, where the AOVs are mixtures),
@@ -175,7 +175,7 @@ class _Renderer:
         where the value is no shape's index (an average across several shapes).
 
         ``shape_index`` is the 1-based position in ``scene.shapes()`` in scalar variants and the
-        shape's JIT registry id in LLVM/CUDA ones (notes/mitsuba.md §2.1): map each scene with
+        shape's JIT registry id in LLVM/CUDA ones (docs/rendering.md): map each scene with
         its own table.
         """
         mi = self.mi

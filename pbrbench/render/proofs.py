@@ -3,7 +3,7 @@
 Each check renders (through the render cache) small validation scenes built from SceneSpec
 dicts, compares them with an exact answer from :mod:`pbrbench.shading.irradiance` or with a
 second, independent render, and returns records
-``{"check", "measured", "bound", "passed", "detail"}``.  The checks (issue 3, "Proof" 1-5):
+``{"check", "measured", "bound", "passed", "detail"}``.  The checks:
 
 1. ``sphere_directional``, ``sphere_point``: a Lambertian sphere against the box-filtered analytic
    image ``rho E max(0, N.S) / pi`` and ``rho I cos / (pi r^2)``; relative error on fully covered
@@ -73,7 +73,7 @@ POINT_LIGHT = {"type": "point", "position": [1.5, 2.0, 3.0], "intensity": 20.0}
 def sphere_spec(light: dict, *, name: str, resolution: int = 64, spp: int = 8192) -> SceneSpec:
     """A Lambertian sphere (albedo (0.2, 0.5, 0.8)), orthographic, direct light only."""
     return SceneSpec.model_validate({
-        "name": name, "description": "validation: Lambertian sphere under one delta source", "reference": "issue 3, proof 1",
+        "name": name, "description": "validation: Lambertian sphere under one delta source", "reference": "pbrbench validate, proof 1",
         "camera": {"type": "orthographic", "half_width": SPHERE_HW},
         "render": {"resolution": resolution, "spp": spp, "max_depth": 2, "sampler": "multijitter"},
         "materials": {"paint": {"type": "diffuse", "albedo": list(SPHERE_ALBEDO)}},
@@ -110,7 +110,7 @@ def shadow_spec(*, occluded: bool = True, resolution: int = 64, spp: int = 16384
 def integrating_sphere_spec(rho: float, *, resolution: int = 32, spp: int = 4096) -> SceneSpec:
     return SceneSpec.model_validate({
         "name": f"validate_integrating_sphere[albedo={rho:g}]", "description": "validation: closed Lambertian sphere, point source at the centre",
-        "reference": "issue 3, proof 3",
+        "reference": "pbrbench validate, proof 3",
         "camera": {"type": "orthographic", "origin": [0.0, 0.0, 0.0], "target": [0.0, 0.0, -1.0], "half_width": 0.5},
         "render": {"resolution": resolution, "spp": spp, "max_depth": -1, "sampler": "multijitter"},
         "materials": {"wall": {"type": "diffuse", "albedo": rho}},
@@ -123,7 +123,7 @@ PLANE_ROT = ({"axis": [1.0, 0.0, 0.0], "angle": 30.0}, {"axis": [0.0, 1.0, 0.0],
 
 def tilted_plane_spec(*, resolution: int = 64, spp: int = 1024) -> SceneSpec:
     return SceneSpec.model_validate({
-        "name": "validate_tilted_plane", "description": "validation: tilted plane for the depth AOV", "reference": "issue 3, proof 4",
+        "name": "validate_tilted_plane", "description": "validation: tilted plane for the depth AOV", "reference": "pbrbench validate, proof 4",
         "camera": {"type": "orthographic", "origin": [0.0, 0.0, 5.0], "half_width": 1.0},
         "render": {"resolution": resolution, "spp": spp, "max_depth": 2},
         "shapes": [{"name": "plane", "type": "rectangle", "center": [0.0, 0.0, 0.0], "size": [6.0, 6.0], "rotate": list(PLANE_ROT)}],
@@ -134,7 +134,7 @@ def gi_spec(*, seed: int = 0, resolution: int = 64, spp: int = 1024) -> SceneSpe
     """A concave groove (albedo 0.7) lit by three distant sources one at a time: strong indirect light."""
     s2 = math.sqrt(2.0)
     return SceneSpec.model_validate({
-        "name": f"validate_gi[seed={seed}]", "description": "validation: concave groove with interreflections", "reference": "issue 3, proof 5",
+        "name": f"validate_gi[seed={seed}]", "description": "validation: concave groove with interreflections", "reference": "pbrbench validate, proof 5",
         "camera": {"type": "orthographic", "origin": [0.0, 0.0, 3.0], "half_width": 1.0},
         "render": {"resolution": resolution, "spp": spp, "max_depth": -1, "seed": seed},
         "materials": {"paint": {"type": "diffuse", "albedo": 0.7}},

@@ -231,7 +231,8 @@ def job_figures(result, job_dir: str) -> tuple[dict[str, bytes], dict]:
     job = result.job
     files: dict[str, bytes] = {}
     manifest = {"job": job.key, "task": job.task, "scene": job.scene, "condition": job.condition,
-                "params": [[str(k), str(v)] for k, v in job.params], "figures": [], "errors": []}
+                "params": [[str(k), str(v)] for k, v in job.params], "figures": [], "errors": [],
+                "failures": {str(k): str(v) for k, v in getattr(result, "failures", {}).items()}}
 
     def add(kind, name, fn, *args):
         rel = f"{job_dir}/{kind}-{slug(name, 40)}.png"

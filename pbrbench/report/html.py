@@ -144,12 +144,12 @@ def load_figures(run_dir: Path) -> dict[str, list[dict]]:
             if p.is_file():
                 caption = f["name"][len("linear:"):] if f["name"].startswith("linear:") else f["name"]
                 figs.setdefault(f["kind"], []).append({"name": f["name"], "caption": caption, "src": _data_uri(p)})
-        if not any(figs.values()) and not m.get("errors"):
+        if not any(figs.values()) and not m.get("errors") and not m.get("failures"):
             continue
         params = ", ".join(f"{k}={v}" for k, v in m.get("params", []))
         out[m["task"]].append({"scene": m["scene"], "condition": m["condition"], "params": params,
                                "images": figs["image"], "error_maps": figs["error_map"], "plots": figs["plot"],
-                               "errors": m.get("errors", [])})
+                               "errors": m.get("errors", []), "failures": m.get("failures", {})})
     for task in out:
         out[task].sort(key=lambda j: (j["scene"], j["condition"], j["params"]))
     return dict(out)
@@ -209,12 +209,15 @@ def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
     return out
 
 
-def build_context(store, run_id: str, *, run_dir: Path) -> dict:
+def build_context(store, run_id: str, *, run_dir: Path, status: str | None = None) -> dict:
     """Everything the template shows, read from ``store`` (a :class:`pbrbench.bench.store.Store`)
-    and the run's figure files; nothing is recomputed."""
+    and the run's figure files; nothing is recomputed (``status``: the status to show, when the
+    run is about to take it)."""
     run = store.get_run(run_id)
     if run is None:
         raise KeyError(run_id)
+    if status is not None:
+        run["status"] = status
     scores = [s for s in store.scores(run_id) if s["task"] != "perf"]
     perf = [s for s in store.scores(run_id) if s["task"] == "perf"]
     info = run["config"].get("task_info", {})
@@ -246,6 +249,8 @@ def build_context(store, run_id: str, *, run_dir: Path) -> dict:
         "history": history_figures(store, run_id, info, run["quality"]),
         "comparison": comparison, "baseline_quality": (comparison or {}).get("baseline_quality"),
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf,
+        "failures": [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
+                     for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())],
     }
 
 
@@ -258,11 +263,11 @@ def _job_errors(errors: dict[str, str]) -> list[dict]:
     return out
 
 
-def write_report(store, run_id: str, *, out_dir: str | Path) -> Path:
+def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None = None) -> Path:
     """Write ``<out_dir>/index.html`` for ``run_id`` and return its path."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    html = render_html(build_context(store, run_id, run_dir=out_dir))
+    html = render_html(build_context(store, run_id, run_dir=out_dir, status=status))
     p = out_dir / "index.html"
     tmp = p.with_name("index.html.tmp")
     tmp.write_text(html, encoding="utf-8")

@@ -1,6 +1,6 @@
 """Scene files: a TOML description validated into an immutable, hashable :class:`SceneSpec`.
 
-Conventions (SCIENCE.md §0): world frame with the default camera at +z looking at the origin,
+Conventions (docs/conventions.md): world frame with the default camera at +z looking at the origin,
 x right, y up.  Light ``direction`` vectors point **from the scene toward the source** (the
 vision convention); the Mitsuba builder converts them to Mitsuba's direction of travel.
 Colours/albedos are a number (grey) or ``[r, g, b]``; all values are linear.

@@ -1,6 +1,6 @@
 """Closed-form radiometry used to prove that the ground-truth renders are right.
 
-Everything is NumPy, in the world frame of the scene files (SCIENCE.md §0: x right, y up, z toward
+Everything is NumPy, in the world frame of the scene files (docs/conventions.md: x right, y up, z toward
 the default camera).  Light vectors point from the surface toward the source.
 
 * :func:`polygon_irradiance` -- irradiance at points from a uniform Lambertian polygonal source
@@ -468,7 +468,7 @@ def sphere_reference(resolution, half_width: float, *, albedo: float = 1.0, radi
 
     References
     ----------
-    Lambert's cosine law; SCIENCE.md §0; notes/mitsuba.md §3 (box-filtered references).
+    Lambert's cosine law; docs/conventions.md; docs/rendering.md (box-filtered references).
     """
     if (direction is None) == (position is None):
         raise ValueError("give exactly one of direction= (a directional source) or position= (a point source)")
@@ -557,7 +557,7 @@ def integrating_sphere_radiance(albedo: float, intensity: float, radius: float =
     References
     ----------
     D. A. Forsyth and J. Ponce, *Computer Vision: A Modern Approach*, §2 (radiosity,
-    interreflections; the "white room" limit); SCIENCE.md §3.
+    interreflections; the "white room" limit); docs/science.md §3.
     """
     rho = float(albedo)
     if not 0 <= rho < 1:

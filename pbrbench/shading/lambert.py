@@ -1,6 +1,6 @@
 """The local shading model: Lambertian images from normals, albedo and distant sources.
 
-``I_k(x) = rho(x) * E_k * max(0, N(x) . S_k) / pi`` (SCIENCE.md §0), or without the 1/pi when
+``I_k(x) = rho(x) * E_k * max(0, N(x) . S_k) / pi`` (docs/conventions.md), or without the 1/pi when
 ``radiance=False`` (the chapter's ``I = rho I0 cos(theta)`` with the 1/pi absorbed).
 """
 

@@ -1,6 +1,6 @@
 """Analytic Mondrians: piecewise-constant albedo under smooth (or shadowed) illumination.
 
-The test scene of the lightness chapter (SCIENCE.md §5; Land & McCann, "Lightness and retinex
+The test scene of the lightness chapter (docs/science.md §5; Land & McCann, "Lightness and retinex
 theory", JOSA 1971): a collage of flat matte papers seen frontally, so the linear image is
 ``C(x) = I(x) rho(x)`` (the camera gain absorbed into ``I``).  Everything here is NumPy and
 seeded; no renderer is involved, so the exact albedo and shading are known.
@@ -143,7 +143,7 @@ def point_source_shading(size, *, position=(0.6, 0.4, 1.2), intensity: float = 1
     """Irradiance on the frontal plane ``z = 0`` from an isotropic point source.
 
     ``E(x, y) = I h / r^3`` with ``r^2 = (x - sx)^2 + (y - sy)^2 + h^2`` (cosine law times
-    inverse square; SCIENCE.md §0), for a source at ``(sx, sy, h)`` in the world frame of
+    inverse square; docs/conventions.md), for a source at ``(sx, sy, h)`` in the world frame of
     :func:`pbrbench.shading.surfaces.pixel_grid` (x right, y up, film ``[-half_width,
     half_width]``).  ``colour`` (length-3) multiplies the field per channel.
     """
@@ -186,7 +186,7 @@ def cast_shadow(size, *, center=(0.35, 0.4), radius: float = 0.22, level: float 
 
     ``center`` and ``radius`` are fractions of the image width/height (column, row).
     ``penumbra`` is the standard deviation in pixels of a Gaussian blur of the edge
-    (0: a sharp edge, the case that breaks retinex; SCIENCE.md §5).
+    (0: a sharp edge, the case that breaks retinex; docs/science.md §5).
     """
     h, w = (size, size) if np.isscalar(size) else tuple(int(s) for s in size)
     if not (0 < level <= 1):

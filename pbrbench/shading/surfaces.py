@@ -1,7 +1,7 @@
 """Named analytic surfaces ``z = f(x, y)`` with exact gradients.
 
 Used twice: by scene files (a heightfield mesh built from a named surface) and by the analytic
-tests of the inference package.  Frame of SCIENCE.md §0: x right, y up, z toward the camera;
+tests of the inference package.  Frame of docs/conventions.md: x right, y up, z toward the camera;
 row 0 of an image is the top (largest y).  The unit normal of the Monge patch is
 ``N = (-f_x, -f_y, 1) / sqrt(1 + f_x**2 + f_y**2)``.
 

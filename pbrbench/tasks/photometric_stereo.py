@@ -91,14 +91,14 @@ class PhotometricStereoTask(Task):
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:
-        from pbrbench.infer import integration
-        from pbrbench.infer import photometric_stereo as ps
+        from pbrbench.infer.integration import METHODS as INTEGRATION
+        from pbrbench.infer.photometric_stereo import BASELINES, METHODS
 
-        out = [Algorithm(n, self.name, fn) for n, fn in ps.METHODS.items()]
-        out += [Algorithm(f"baseline:{n}", self.name, fn, kind="baseline") for n, fn in ps.BASELINES.items()]
+        out = [Algorithm(n, self.name, fn) for n, fn in METHODS.items()]
+        out += [Algorithm(f"baseline:{n}", self.name, fn, kind="baseline") for n, fn in BASELINES.items()]
         out += [Algorithm(f"integrate:{n}", self.name, fn, kind="floor", conditions=("local",),
                           description="the true normals integrated by this method: the integration floor")
-                for n, fn in integration.METHODS.items()]
+                for n, fn in INTEGRATION.items()]
         return out
 
     # ------------------------------------------------------------------------------ jobs

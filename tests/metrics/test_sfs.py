@@ -58,8 +58,8 @@ def test_normal_angle_known_value():
 def test_flat_baseline_of_sphere_is_45_degrees(sphere):
     # mean slant of a hemisphere seen from above: 2 * int_0^1 r asin(r) dr = pi/4
     fb = flat_baseline(sphere.z, sphere.normals, sphere.mask)
-    assert fb["normal_angle"] == pytest.approx(45.0, abs=1.0)
-    assert fb["rmse"] > 0.2
+    assert fb["normal_mean_deg"] == pytest.approx(45.0, abs=1.0)
+    assert fb["height_rmse"] > 0.2
 
 
 def test_floor_is_far_below_flat(sphere):
@@ -68,14 +68,14 @@ def test_floor_is_far_below_flat(sphere):
     assert np.all(np.isfinite(z)) and abs(z[sphere.mask].mean()) < 1e-9
     fl = floor_scores(sphere.z, sphere.normals, sphere.mask, pixel_size=h)
     fb = flat_baseline(sphere.z, sphere.normals, sphere.mask)
-    assert fl["rmse"] < 0.1 * fb["rmse"]
-    assert fl["normal_angle"] < 0.2 * fb["normal_angle"]
+    assert fl["height_rmse"] < 0.1 * fb["height_rmse"]
+    assert fl["normal_mean_deg"] < 0.2 * fb["normal_mean_deg"]
 
 
 def test_floor_is_exact_for_a_plane():
     s = on_grid("plane", 32, half_width=1.0, fx=0.3, fy=-0.2)
     fl = floor_scores(s.z, s.normals, s.mask, pixel_size=2 / 32)
-    assert fl["rmse"] < 1e-6 and fl["normal_angle"] < 1e-4
+    assert fl["height_rmse"] < 1e-6 and fl["normal_mean_deg"] < 1e-4
 
 
 def test_ambiguity_aware_score_forgives_inversion(sphere):
@@ -86,8 +86,8 @@ def test_ambiguity_aware_score_forgives_inversion(sphere):
     assert amb["flipped"]
     assert amb["normal_angle"] == pytest.approx(0.0, abs=1e-6)
     assert amb["rmse"] == pytest.approx(0.0, abs=1e-12)
-    assert plain["normal_angle"] > 60.0
-    assert plain["normal_angle_ambiguous"] == pytest.approx(0.0, abs=1e-6)
+    assert plain["normal_mean_deg"] > 60.0
+    assert plain["normal_mean_deg_flip"] == pytest.approx(0.0, abs=1e-6)
 
 
 def test_value_errors(sphere):
@@ -107,3 +107,14 @@ def test_value_errors(sphere):
         floor_height(flipped, sphere.mask)
     with pytest.raises(ValueError, match="pixel_size"):
         floor_height(sphere.normals, sphere.mask, pixel_size=0)
+
+
+def test_score_names_are_the_metrics_table_and_height_range_gives_relative_rmse(sphere):
+    from pbrbench.metrics import METRICS
+
+    sc = sfs_scores(sphere.z, sphere.normals, sphere.z, sphere.normals, sphere.mask, height_range=2.0)
+    assert set(sc) <= set(METRICS) and "height_rmse_rel" in sc
+    assert sc["height_rmse_rel"] == pytest.approx(sc["height_rmse"] / 2.0)
+    assert "height_rmse_rel" not in sfs_scores(sphere.z, sphere.normals, sphere.z, sphere.normals, sphere.mask)
+    fb = flat_baseline(sphere.z, sphere.normals, sphere.mask, height_range=2.0)
+    assert set(fb) <= set(METRICS) and fb["height_rmse_rel"] == pytest.approx(fb["height_rmse"] / 2.0)

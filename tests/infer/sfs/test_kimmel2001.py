@@ -46,7 +46,7 @@ def test_fast_marching_oblique_vase_seeds_only_the_global_maximum():
     s, img, h = scene("vase", 128, OBLIQUE)
     r = shape_from_shading(img, OBLIQUE, method="kimmel2001", albedo=0.8, mask=s.mask, pixel_size=h)
     assert r.info["singular_components"] > 1
-    floor = floor_scores(np.where(s.mask, s.z, 0.0), s.normals, s.mask, pixel_size=h)["normal_angle"]
+    floor = floor_scores(np.where(s.mask, s.z, 0.0), s.normals, s.mask, pixel_size=h)["normal_mean_deg"]
     assert normal_angle(r.normals, s.normals, s.mask) < floor + 10.0
 
 

@@ -27,16 +27,19 @@ def _assert_all(records, expected):
         assert set(r) == {"check", "measured", "bound", "passed", "detail"}
 
 
+@pytest.mark.render
 def test_sphere_directional_and_normals(cache):
     recs = V.check_sphere("draft", cache, kind="directional")
     _assert_all(recs, {"sphere_directional", "normals"})
     assert next(r for r in recs if r["check"] == "sphere_directional")["bound"] == 1e-3
 
 
+@pytest.mark.render
 def test_sphere_point_light(cache):
     _assert_all(V.check_sphere("draft", cache, kind="point"), {"sphere_point"})
 
 
+@pytest.mark.render
 def test_area_source_penumbra_and_edges(cache):
     recs = V.check_area_source("draft", cache)
     _assert_all(recs, {"area_source", "penumbra", "shadow_edges"})
@@ -44,21 +47,25 @@ def test_area_source_penumbra_and_edges(cache):
     assert bounds["area_source"] == 0.01 and bounds["penumbra"] == 0.02
 
 
+@pytest.mark.render
 def test_integrating_sphere(cache):
     recs = V.check_integrating_sphere("draft", cache)
     _assert_all(recs, {"integrating_sphere[rho=0.3]", "integrating_sphere[rho=0.6]", "integrating_sphere[rho=0.9]"})
     assert all(r["bound"] == 0.01 for r in recs)
 
 
+@pytest.mark.render
 def test_depth_of_a_tilted_plane(cache):
     _assert_all(V.check_depth("draft", cache), {"depth", "normals_plane"})
 
 
+@pytest.mark.render
 def test_decomposition_and_light_sum(cache, tmp_path):
     _assert_all(V.check_decomposition("draft", cache, diagnostics_dir=tmp_path),
                 {"decomposition", "light_sum", "light_sum_direct"})
 
 
+@pytest.mark.render
 def test_a_wrong_reference_fails(cache):
     """Failure mode: the same render against a reference with a 1 % wrong irradiance must fail."""
     import numpy as np

@@ -5,130 +5,36 @@ import json
 import os
 import subprocess
 import sys
-from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from pbrbench.bench import runner
-from pbrbench.bench.runner import GroundTruthSource, RunConfig, run_benchmark
+import pbrbench.bench.plan as planning
+from pbrbench.bench.run import RunConfig, run_benchmark
 from pbrbench.bench.store import Store
-from pbrbench.render.groundtruth import GroundTruth
-from pbrbench.report.figures import slug
-from pbrbench.tasks.base import Job, JobResult, Score, Task
-
-EVIL = "<script>alert('x')</script>"
-
-
-# ----------------------------------------------------------------------------- fakes
-@dataclass(frozen=True)
-class FakeSpec:
-    name: str
-
-    def content_hash(self) -> str:
-        return "hash-" + self.name
-
-
-class FakeSource(GroundTruthSource):
-    """Synthetic ground truths; 'rendering' writes a marker file so the cache check is real."""
-
-    def __init__(self, root, quality="draft"):
-        super().__init__(quality, cache_root=str(root), variant="fake")
-
-    def specs(self, names):
-        return {n: FakeSpec(n) for n in names}
-
-    def _file(self, spec):
-        return Path(self.cache_root) / f"{slug(spec.name)}.json"
-
-    def cached_meta(self, spec):
-        p = self._file(spec)
-        return json.loads(p.read_text()) if p.is_file() else None
-
-    def render(self, spec):
-        meta = self.cached_meta(spec)
-        if meta is not None:
-            return meta, True
-        meta = {"scene_hash": spec.content_hash(), "quality": self.quality, "spp": 4, "resolution": [16, 12],
-                "noise": {"radiance_rel_sd_rms": 0.01, "radiance_rel_sd_median": 0.005}, "wall_s": 0.0}
-        Path(self.cache_root).mkdir(parents=True, exist_ok=True)
-        self._file(spec).write_text(json.dumps(meta))
-        return meta, False
-
-    def load(self, spec):
-        rng = np.random.default_rng(sum(map(ord, spec.name)))
-        rad = rng.uniform(0.1, 1.0, (12, 16, 3)).astype(np.float32)
-        return GroundTruth({"radiance": rad, "direct": 0.8 * rad}, {"scene_hash": spec.content_hash()})
-
-
-class FakeTask(Task):
-    name = "fake"
-    description = f"A fake task {EVIL}"
-    algorithms = ("good", "baseline:zero")
-    conditions = ("local", "global")
-    headline_metric = "rmse"
-    headline_better = "lower"
-    scenes = ("scene_a", "scene_b")
-    fail_scene = None
-
-    def jobs(self, quality):
-        return [Job(self.name, s, c) for s in self.scenes for c in self.conditions]
-
-    def run_job(self, job, gts, *, seed=0):
-        if job.scene == self.fail_scene:
-            raise RuntimeError("deliberate failure")
-        gt = gts[job.scene]
-        truth = gt["radiance"] if job.condition == "global" else gt["direct"]
-        rng = np.random.default_rng([seed, len(job.scene), len(job.condition)])
-        out = JobResult(job)
-        ests = {"good": truth + 0.01 * rng.standard_normal(truth.shape), "baseline:zero": np.zeros_like(truth)}
-        for alg, est in ests.items():
-            err = np.abs(est - truth).mean(-1)
-            out.scores.append(Score(self.name, job.scene, gt.meta["scene_hash"], job.condition, alg, "1", "rmse",
-                                    float(np.sqrt((err ** 2).mean())), 0.001))
-            out.scores.append(Score(self.name, job.scene, gt.meta["scene_hash"], job.condition, alg, "1", "psnr",
-                                    float(-20 * np.log10(np.sqrt((err ** 2).mean()) + 1e-12)), 0.001, "higher"))
-            out.error_maps[f"{alg} |error|"] = err
-        out.images["input"] = np.clip(truth, 0, 1)
-        out.images["linear:truth"] = truth
-        out.images[EVIL] = np.clip(truth[..., 0], 0, 1)
-        out.plots["profile"] = {"x": list(range(16)), "series": {"truth": truth[6, :, 0].tolist(),
-                                                                   "good": ests["good"][6, :, 0].tolist()},
-                                "xlabel": "column", "ylabel": "radiance"}
-        return out
-
-
-def cfg_for(tmp_path, **kw):
-    return RunConfig(quality="draft", out=str(tmp_path / "reports"), store=str(tmp_path / "h.sqlite"),
-                     progress=False, **kw)
-
-
-def fake_run(tmp_path, task=None, **kw):
-    task = task or FakeTask()
-    return run_benchmark(cfg_for(tmp_path, **kw), tasks={"fake": task}, source=FakeSource(tmp_path / "cache"),
-                         log=lambda m: None)
+from pbrbench.tasks.base import Job
+from tests.fakes import FakeSource, FakeTask, fake_run, settings_for
 
 
 # ----------------------------------------------------------------------------- tests
 def test_plan_orders_by_scene_and_rejects_duplicates():
-    jobs = runner.plan({"fake": FakeTask()}, "draft")
+    jobs = planning.plan({"fake": FakeTask()}, "draft")
     assert [j.scene for j in jobs] == ["scene_a", "scene_a", "scene_b", "scene_b"]
-    assert runner.needed_scenes(jobs) == ["scene_a", "scene_b"]
+    assert planning.needed_scenes(jobs) == ["scene_a", "scene_b"]
 
     class Dup(FakeTask):
         def jobs(self, quality):
             return [Job("fake", "s", "local")] * 2
 
     with pytest.raises(ValueError, match="duplicate job keys"):
-        runner.plan({"fake": Dup()}, "draft")
+        planning.plan({"fake": Dup()}, "draft")
 
     class Wrong(FakeTask):
         def jobs(self, quality):
             return [Job("other", "s", "local")]
 
     with pytest.raises(ValueError, match="Job.task"):
-        runner.plan({"fake": Wrong()}, "draft")
+        planning.plan({"fake": Wrong()}, "draft")
 
 
 def test_run_stores_scores_figures_export_and_report(tmp_path):
@@ -147,7 +53,9 @@ def test_run_stores_scores_figures_export_and_report(tmp_path):
     assert all((run_dir / "figures" / f["file"]).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for f in m["figures"])
     with Store(tmp_path / "h.sqlite") as s:
         run = s.get_run(o.run_id)
-        assert run["quality"] == "draft" and run["config"]["task_info"]["fake"]["headline_metric"] == "rmse"
+        assert run["quality"] == "draft" and run["config"]["task_info"]["fake"]["headline_metric"] == "height_rmse"
+        versions = run["config"]["task_info"]["fake"]["algorithm_versions"]
+        assert set(versions) == {"good", "baseline:zero"} and all("+" in v for v in versions.values())
         assert {g["scene"] for g in s.ground_truths(o.run_id)} == {"scene_a", "scene_b"}
     # second run: ground truths come from the (fake) cache
     o2 = fake_run(tmp_path)
@@ -176,7 +84,7 @@ def test_failed_job_is_recorded_and_resume_completes_it(tmp_path):
     calls = []
     t2 = FakeTask()
     orig = t2.run_job
-    t2.run_job = lambda job, gts, seed=0: calls.append(job.key) or orig(job, gts, seed=seed)
+    t2.run_job = lambda job, gts, **kw: calls.append(job.key) or orig(job, gts, **kw)
     o2 = fake_run(tmp_path, task=t2, resume=o.run_id)
     assert o2.run_id == o.run_id and o2.n_skipped == 2 and not o2.errors
     assert sorted(calls) == sorted(k for k in o.errors)
@@ -187,11 +95,11 @@ def test_interrupted_run_keeps_scores_and_resumes(tmp_path):
     class Interrupt(FakeTask):
         n = 0
 
-        def run_job(self, job, gts, *, seed=0):
+        def run_job(self, job, gts, **kw):
             Interrupt.n += 1
             if Interrupt.n == 3:
                 raise KeyboardInterrupt
-            return super().run_job(job, gts, seed=seed)
+            return super().run_job(job, gts, **kw)
 
     with pytest.raises(KeyboardInterrupt):
         fake_run(tmp_path, task=Interrupt())
@@ -207,31 +115,17 @@ def test_unknown_task_and_quality_are_user_errors(tmp_path):
     from pbrbench.errors import UserError
 
     with pytest.raises(UserError, match="--tasks"):
-        run_benchmark(cfg_for(tmp_path, tasks=["nope"]), source=FakeSource(tmp_path / "c"))
-    with pytest.raises(UserError, match="--quality"):
-        run_benchmark(RunConfig(quality="ultra", out=str(tmp_path), progress=False), tasks={"fake": FakeTask()},
+        run_benchmark(RunConfig(quality="draft", tasks=["nope"]), settings=settings_for(tmp_path),
                       source=FakeSource(tmp_path / "c"))
-
-
-def _real_task():
-    from pbrbench.tasks import TASK_MODULES
-
-    # the cheapest task first: this test is about the plumbing, not the science
-    for name in ("lightness",) + tuple(TASK_MODULES):
-        try:
-            __import__(f"pbrbench.tasks.{name}")
-            return name
-        except ImportError:
-            continue
-    return None
+    with pytest.raises(UserError, match="--quality"):
+        run_benchmark(RunConfig(quality="ultra"), settings=settings_for(tmp_path), tasks={"fake": FakeTask()},
+                      source=FakeSource(tmp_path / "c"))
 
 
 @pytest.mark.render
 def test_end_to_end_draft_cli(tmp_path, cache_dir):
     """`pbrbench run --quality draft` on one real task, then report / history / compare."""
-    name = _real_task()
-    if name is None:
-        pytest.skip("no task module is importable yet")
+    name = "lightness"  # the cheapest task: this test is about the plumbing, not the science
     env = dict(os.environ, PBRBENCH_CACHE=str(cache_dir), PBRBENCH_BASELINES=str(tmp_path / "no-baselines"))
     base = [sys.executable, "-m", "pbrbench"]
     common = ["--out", str(tmp_path / "r"), "--store", str(tmp_path / "h.sqlite")]

@@ -49,6 +49,7 @@ def test_version_from_file_name():
     assert llvm_major("/no/such/libLLVM-19.so") is None
 
 
+@pytest.mark.render
 def test_missing_path_falls_back_and_renders():
     out = run_probe({"DRJIT_LIBLLVM_PATH": "/no/such/libLLVM-19.so.1"}, render=True)
     assert out["notice"] and "/no/such/libLLVM-19.so.1" in out["notice"]
@@ -57,6 +58,7 @@ def test_missing_path_falls_back_and_renders():
     assert out["mean"] > 0
 
 
+@pytest.mark.render
 @pytest.mark.skipif(not OLD, reason="no libLLVM 14/15 on this machine to refuse")
 def test_old_llvm_is_refused_and_fallback_to_newer():
     out = run_probe({"DRJIT_LIBLLVM_PATH": OLD[-1]}, render=True)
@@ -67,6 +69,7 @@ def test_old_llvm_is_refused_and_fallback_to_newer():
     assert out["mean"] > 0  # the process survived a render
 
 
+@pytest.mark.render
 @pytest.mark.skipif(not OLD, reason="no libLLVM 14/15 on this machine to refuse")
 def test_only_old_llvm_falls_back_to_scalar_with_notice():
     # search only the directory of the old library and hide the good ones: the chooser must

@@ -34,6 +34,7 @@ def gt(cache_dir):
     return g
 
 
+@pytest.mark.render
 def test_normals_in_camera_frame(gt):
     x, y = pixel_grid(RES, RES, HW)
     r2 = x * x + y * y
@@ -45,6 +46,7 @@ def test_normals_in_camera_frame(gt):
     assert gt["normals"][inside][:, 2].min() > 0  # z toward the camera
 
 
+@pytest.mark.render
 def test_depth_ids_mask(gt):
     x, y = pixel_grid(RES, RES, HW)
     ball = gt["object_id"] == 1
@@ -62,11 +64,13 @@ def test_depth_ids_mask(gt):
     assert not np.any(gt.mask & (gt["object_id"] == 0))
 
 
+@pytest.mark.render
 def test_albedo_aov_exact(gt):
     ball = (gt["object_id"] == 1) & gt.mask
     np.testing.assert_allclose(gt["albedo"][ball], np.broadcast_to([0.2, 0.5, 0.8], (ball.sum(), 3)), atol=1e-6)
 
 
+@pytest.mark.render
 def test_light_stack_and_direct_split(gt):
     stack = gt.light_stack("direct")
     assert stack.shape == (2, RES, RES, 3)
@@ -81,6 +85,7 @@ def test_light_stack_and_direct_split(gt):
     assert gt["indirect"][gt["object_id"] == 1].mean() > 0  # the wall lights the ball
 
 
+@pytest.mark.render
 def test_render_cli_writes_exr_and_previews(tmp_path, cache_dir, monkeypatch):
     from pbrbench.cli.main import main
 

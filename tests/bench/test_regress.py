@@ -64,7 +64,10 @@ def test_write_load_roundtrip(tmp_path):
     p = regress.write_baselines(b, tmp_path / "draft.json")
     assert regress.load_baselines(p) == b
     assert regress.load_baselines(tmp_path / "none.json") is None
-    assert regress.markers(regress.compare([s(9.0)], b)) == {("t", "m", "local"): "regression"}
+    from pbrbench.bench.run import comparison_record
+    from pbrbench.report.html import markers
+
+    assert markers(comparison_record(regress.compare([s(9.0)], b))) == {("t", "m", "local"): "regression"}
 
 
 def test_changed_scene_is_named_in_the_message():

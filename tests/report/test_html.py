@@ -12,18 +12,18 @@ from pathlib import Path
 
 import pytest
 from PIL import Image
-from test_runner import EVIL, FakeTask, fake_run
 
 from pbrbench.bench import regress
+from pbrbench.bench.run import comparison_record
 from pbrbench.bench.store import Store
 from pbrbench.report.html import headline_tables, write_report
+from tests.fakes import EVIL, FakeTask, fake_run
 
 CHROMIUM = "/usr/bin/chromium"
 
 
 class EvilTask(FakeTask):
     scenes = ("scene_a", f"scene {EVIL}")
-    algorithms = ("good", "baseline:zero")
 
 
 class Parsed(HTMLParser):
@@ -84,15 +84,17 @@ def test_headline_rows_and_regression_markers(report):
     # a baseline that the run beats for "good" and misses for "baseline:zero"
     entries = {}
     for s in o.scores:
-        if s["metric"] != "rmse":
+        if s["metric"] != "height_rmse":
             continue
         e = {k: s[k] for k in regress.KEY_FIELDS}
         old = s["value"] * (0.5 if s["algorithm"] == "baseline:zero" else 2.0)
         e.update(value=old, better="lower", tolerance=1e-6)
         entries[regress.score_key(s)] = e
     base = {"format": regress.FORMAT, "quality": "draft", "entries": entries}
+    comp = regress.compare(o.scores, base)
     with Store(tmp / "h.sqlite") as st:
-        path = write_report(st, o.run_id, out_dir=tmp / "again", baselines=base)
+        st.set_comparison(o.run_id, dict(comparison_record(comp), baseline_quality="draft"))
+        path = write_report(st, o.run_id, out_dir=tmp / "again")
     html = path.read_text()
     assert html.count('class="mark-regression" title') == 2   # baseline:zero x (local, global)
     assert html.count('class="mark-improvement" title') == 2  # good x (local, global)
@@ -110,8 +112,7 @@ def test_user_strings_are_escaped(report):
 def test_headline_aggregates_stored_scores():
     scores = [{"task": "t", "scene": s, "condition": c, "algorithm": "a", "metric": "m", "value": v, "better": "lower"}
               for s, c, v in (("x", "local", 1.0), ("y", "local", 3.0), ("x", "global", 5.0))]
-    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "headline_better": "lower",
-                                          "conditions": ["local", "area", "global"]}})
+    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "conditions": ["local", "area", "global"]}})
     assert h["conditions"] == ["local", "global"]
     cells = h["rows"][0]["cells"]
     assert [c["value"] for c in cells] == [2.0, 5.0] and [c["n"] for c in cells] == [2, 1]

@@ -38,6 +38,7 @@ def test_key_depends_on_content_quality_variant():
     assert a == cache_key(spec(description="another text"), "draft", "llvm_ad_rgb")
 
 
+@pytest.mark.render
 def test_round_trip_through_cache(tmp_path):
     c = RenderCache(tmp_path)
     gt, cached = ground_truth(spec(), "standard", cache=c)
@@ -52,6 +53,7 @@ def test_round_trip_through_cache(tmp_path):
     assert c.info()["entries"] == 1
 
 
+@pytest.mark.render
 def test_corrupt_entry_is_not_read(tmp_path):
     c = RenderCache(tmp_path)
     gt, _ = ground_truth(spec(), "standard", cache=c)
@@ -82,6 +84,7 @@ KILLED_WRITER = textwrap.dedent("""
 """).replace("__SCENE__", repr(SCENE))
 
 
+@pytest.mark.render
 def test_sigkill_mid_write_leaves_no_valid_entry(tmp_path):
     proc = subprocess.Popen([sys.executable, "-c", KILLED_WRITER, str(tmp_path)], stdout=subprocess.PIPE, text=True)
     try:
@@ -109,6 +112,7 @@ def _variant():
     return ch.variant
 
 
+@pytest.mark.render
 @pytest.mark.parametrize("action", ["info", "clear"])
 def test_cache_cli(tmp_path, capsys, monkeypatch, action):
     from pbrbench.cli.main import main

@@ -1,0 +1,146 @@
+"""The algorithm registry: entries, versions that follow the source, quality budgets, pickling,
+and the promise that a new method is one module plus one line in its methods table."""
+
+from __future__ import annotations
+
+import pickle
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from pbrbench.registry import Algorithm, Registry, builtin_registry, source_hash
+from pbrbench.render.quality import get_quality
+from pbrbench.tasks import get_tasks
+from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
+from tests.fakes import FakeSource, ps_gt, ps_job, settings_for
+
+
+def _module(tmp_path, name, body):
+    (tmp_path / f"{name}.py").write_text(textwrap.dedent(body))
+    sys.path.insert(0, str(tmp_path))
+    try:
+        __import__(name)
+    finally:
+        sys.path.remove(str(tmp_path))
+    return sys.modules[name]
+
+
+def test_builtins_come_from_the_methods_tables_and_every_entry_has_a_version():
+    from pbrbench.infer.photometric_stereo import METHODS
+    from pbrbench.infer.sfs import METHODS as SFS
+
+    reg = builtin_registry(get_tasks())
+    ps = [a.name for a in reg.for_task("photometric_stereo", kinds=["method"])]
+    assert ps == list(METHODS)
+    assert [a.name for a in reg.for_task("sfs") if a.kind == "method" and not a.interface][:len(SFS)] == list(SFS)
+    for a in reg:
+        v = a.full_version
+        assert v.count("+") == 1 and len(v.split("+")[1]) == 10, (a.name, v)
+    kinds = {a.kind for a in reg}
+    assert {"method", "baseline", "floor"} <= kinds
+
+
+def test_version_hash_changes_when_the_source_changes(tmp_path):
+    m1 = _module(tmp_path, "pb_reg_v1", "def fn(x):\n    return x\n")
+    m2 = _module(tmp_path, "pb_reg_v2", "def fn(x):\n    return x + 1\n")
+    m3 = _module(tmp_path, "pb_reg_v3", "VERSION = '2.1'\ndef fn(x):\n    return x\n")
+    a1, a2, a3 = (Algorithm("m", "t", m.fn) for m in (m1, m2, m3))
+    assert source_hash(m1.fn) != source_hash(m2.fn)
+    assert a1.full_version.startswith("1+") and a3.full_version.startswith("2.1+")
+    assert a1.full_version.split("+")[1] == a3.full_version.split("+")[1] or m1 is not m3
+    assert Algorithm("m", "t", m1.fn, version="7").full_version.startswith("7+")
+
+
+def test_quality_budgets_are_merged_and_entries_pickle():
+    reg = builtin_registry(get_tasks(["sfs", "hdr"]))
+    horn = reg.get("sfs", "horn1989")
+    assert horn.options_for(get_quality("draft")) == {"max_iter": 300}
+    assert horn.options_for(get_quality("standard")) == {}
+    assert reg.get("hdr", "mitsunaga1999").options_for(get_quality("draft")) == {"degree": 5}
+    back = pickle.loads(pickle.dumps(horn))
+    assert back.name == horn.name and back.full_version == horn.full_version
+    assert pickle.loads(pickle.dumps(get_quality("draft"))) is get_quality("draft")
+
+
+def test_registry_refuses_duplicates_bad_kinds_and_unknown_names():
+    reg = Registry([Algorithm("a", "t", len)])
+    with pytest.raises(ValueError, match="registered twice"):
+        reg.add(Algorithm("a", "t", len))
+    reg.add(Algorithm("a", "t", abs), replace=True)
+    assert reg.get("t", "a").fn is abs
+    with pytest.raises(ValueError, match="kind"):
+        Algorithm("b", "t", len, kind="magic")
+    with pytest.raises(ValueError, match="name"):
+        Algorithm("a|b", "t", len)
+    with pytest.raises(KeyError, match="has no algorithm 'zz'"):
+        reg.get("t", "zz")
+
+
+class TinyPS(PhotometricStereoTask):
+    """The photometric-stereo task on one synthetic sphere (no renderer)."""
+
+    def jobs(self, quality):
+        return [ps_job("local", scene="s")]
+
+
+class SyntheticSource(FakeSource):
+    def load(self, spec):
+        gt, _ = ps_gt()
+        gt.meta["scene_hash"] = spec.content_hash()
+        return gt
+
+
+def test_a_new_method_is_one_module_plus_one_line_in_its_table(tmp_path, monkeypatch):
+    from pbrbench.bench.run import RunConfig, run_benchmark
+    from pbrbench.infer.photometric_stereo import METHODS
+
+    mod = _module(tmp_path, "pb_ps_mymethod", '''
+        """A test method: Woodham's least squares with the normals rounded to 1e-3."""
+        import numpy as np
+        from pbrbench.infer.photometric_stereo import photometric_stereo_woodham1980
+
+        def photometric_stereo_rounded2026(images, lights, *, mask=None):
+            r = photometric_stereo_woodham1980(images, lights, mask=mask)
+            n = np.round(r.normals, 3)
+            return {"normals": n, "albedo": r.albedo, "valid": r.valid}
+        ''')
+    monkeypatch.setitem(METHODS, "rounded2026", mod.photometric_stereo_rounded2026)   # the one line
+    o = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path), tasks={"photometric_stereo": TinyPS()},
+                      source=SyntheticSource(tmp_path / "cache"), log=lambda m: None)
+    assert not o.errors
+    mine = {s["metric"]: s["value"] for s in o.scores if s["algorithm"] == "rounded2026"}
+    assert 0 < mine["normal_mean_deg"] < 0.1 and mine["coverage"] == 1.0
+    assert {s["algorithm_version"] for s in o.scores if s["algorithm"] == "rounded2026"} == \
+        {Algorithm("x", "t", mod.photometric_stereo_rounded2026).full_version}
+    html = o.report.read_text()
+    assert 'data-algorithm="rounded2026"' in html and "normals: rounded2026" in html
+
+
+def test_a_failing_or_malformed_algorithm_is_scored_as_failed_and_the_job_goes_on(tmp_path):
+    from pbrbench.bench.run import RunConfig, run_benchmark
+
+    def raises(images, lights, *, mask=None):
+        raise RuntimeError("my bug")
+
+    def nan_normals(images, lights, *, mask=None):
+        k, h, w = images.shape
+        return np.full((h, w, 3), np.nan), np.ones((h, w))
+
+    def wrong_shape(images, lights, *, mask=None):
+        return np.zeros((3, 3, 3)), np.zeros((3, 3))
+
+    task = TinyPS()
+    reg = builtin_registry({task.name: task})
+    for fn in (raises, nan_normals, wrong_shape):
+        reg.add(Algorithm(fn.__name__, task.name, fn, kind="plugin"))
+    o = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path), tasks={task.name: task},
+                      source=SyntheticSource(tmp_path / "cache"), registry=reg, log=lambda m: None)
+    assert not o.errors
+    sc = {(s["algorithm"], s["metric"]): s["value"] for s in o.scores}
+    for name in ("raises", "nan_normals", "wrong_shape"):
+        assert sc[(name, "failed")] == 1.0 and (name, "normal_mean_deg") not in sc
+    assert sc[("woodham1980", "normal_mean_deg")] < 0.01
+    html = o.report.read_text()
+    assert "RuntimeError: my bug" in html and "non-finite" in html and "shape" in html
