@@ -36,7 +36,6 @@ from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
 
-
 BUSY_TIMEOUT_MS = 60_000
 
 # (version, description, SQL). Never edit an applied migration: append a new one.

@@ -36,7 +36,7 @@ def format_table(records: list[dict]) -> str:
 
 
 def run(args) -> int:
-    apply_env(args)
+    st = settings(args)
     from pbrbench.render.cache import RenderCache
     from pbrbench.render.proofs import CHECKS, run_checks
 

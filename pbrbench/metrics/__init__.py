@@ -38,7 +38,12 @@ from pbrbench.metrics.sfs import (
     normal_angle,
     sfs_scores,
 )
-from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin, specular_scores
+from pbrbench.metrics.specular import (
+    mask_iou,
+    removal_errors,
+    specular_mask_from_twin,
+    specular_scores,
+)
 from pbrbench.metrics.table import STATUS, Metric, merge
 
 

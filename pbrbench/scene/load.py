@@ -21,6 +21,7 @@ from pydantic import BaseModel, ValidationError
 from pbrbench.errors import SceneError
 from pbrbench.scene import spec as S
 
+
 def scenes_dir(directory: str | os.PathLike | None = None) -> Path:
     """Directory of the scene library: ``directory``, else the ``scenes`` setting
     (:class:`pbrbench.settings.Settings`: ``PBRBENCH_SCENES`` or the library shipped in the

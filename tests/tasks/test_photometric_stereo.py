@@ -13,14 +13,10 @@ from pbrbench.tasks.base import Job
 from tests.fakes import (
     FIVE,
     HW,
-    hdr_gt,
-    mondrian_gt,
     ps_gt,
     ps_job,
     run_task,
     scores_of,
-    sfs_gt,
-    specular_gt,
 )
 
 

@@ -2,24 +2,10 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
-
-from pbrbench.render.groundtruth import GroundTruth
-from pbrbench.render.quality import get_quality
-from pbrbench.scene import spec as S
-from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job
 from tests.fakes import (
-    FIVE,
-    HW,
-    hdr_gt,
-    mondrian_gt,
-    ps_gt,
-    ps_job,
     run_task,
     scores_of,
-    sfs_gt,
     specular_gt,
 )
 
