@@ -56,7 +56,7 @@ def test_version_hash_changes_when_the_source_changes(tmp_path):
 def test_quality_budgets_are_merged_and_entries_pickle():
     reg = builtin_registry(get_tasks(["sfs", "hdr"]))
     horn = reg.get("sfs", "horn1989")
-    assert horn.options_for(get_quality("draft")) == {"max_iter": 300}
+    assert horn.options_for(get_quality("draft")) == {"max_iter": 50}
     assert horn.options_for(get_quality("standard")) == {}
     assert reg.get("hdr", "mitsunaga1999").options_for(get_quality("draft")) == {"degree": 5}
     back = pickle.loads(pickle.dumps(horn))

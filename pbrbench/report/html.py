@@ -55,41 +55,44 @@ def _colour(value, lo, hi, better, log) -> str | None:
     return f"hsl({int(round(120 * good))}, 65%, 82%)"
 
 
-def headline_tables(scores: list[dict], info: dict, marks: dict | None = None) -> list[dict]:
-    """Per task: algorithm x condition table of the headline metric (mean over scenes)."""
+def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
+                    geometry: dict | None = None) -> list[dict]:
+    """Per task: the effect table of :func:`pbrbench.report.effects.effect_tables` with display
+    text, colours and regression markers.  The reference column is coloured green (best) to red
+    (worst) across algorithms; an effect is red when it costs accuracy significantly, green when it
+    helps, and greyed when it is within two standard errors of zero."""
+    from pbrbench.report.effects import effect_tables, format_cell
+
     marks = marks or {}
-    by_task = defaultdict(list)
-    for s in scores:
-        by_task[s["task"]].append(s)
     out = []
-    for task in sorted(by_task, key=lambda t: (list(info).index(t) if t in info else 99, t)):
-        ti = info.get(task, {})
-        metric = ti.get("headline_metric") or sorted({s["metric"] for s in by_task[task]})[0]
-        rows = [s for s in by_task[task] if s["metric"] == metric]
-        better = rows[0]["better"] if rows else "lower"
-        order = ti.get("conditions") or ["local", "area", "global"]
-        conds = sorted({s["condition"] for s in rows}, key=lambda c: _cond_sort_key(c, list(order)))
-        alg_order = ti.get("algorithms") or []
-        algs = sorted({s["algorithm"] for s in rows},
-                      key=lambda a: (alg_order.index(a) if a in alg_order else len(alg_order), a))
-        vals = defaultdict(list)
-        for s in rows:
-            vals[(s["algorithm"], s["condition"])].append(s["value"])
-        means = {k: _mean(v) for k, v in vals.items()}
-        finite = [v for v in means.values() if math.isfinite(v)]
+    for t in effect_tables(scores, info, geometry):
+        ref_vals = [r["cells"][0]["value"] for r in t["rows"] if r["cells"][0] is not None]
+        finite = [v for v in ref_vals if math.isfinite(v)]
         lo, hi = (min(finite), max(finite)) if finite else (float("nan"), float("nan"))
         log = bool(finite) and lo > 0 and hi / lo > 10
-        table = []
-        for a in algs:
+        rows = []
+        for r in t["rows"]:
             cells = []
-            for c in conds:
-                v = means.get((a, c))
-                cells.append({"value": v, "text": fmt(v) if v is not None else "", "n": len(vals.get((a, c), [])),
-                              "colour": _colour(v, lo, hi, better, log) if v is not None else None,
-                              "mark": marks.get((task, a, c))})
-            table.append({"algorithm": a, "cells": cells})
-        out.append({"task": task, "metric": metric, "better": better, "conditions": conds, "rows": table,
-                    "description": ti.get("description", "")})
+            for col, c in zip(t["columns"], r["cells"], strict=True):
+                if c is None:
+                    cells.append({"text": "", "value": None, "n": 0, "colour": None, "mark": None, "cls": ""})
+                    continue
+                if not col["effect"]:
+                    colour = _colour(c["value"], lo, hi, t["better"], log)
+                    cls = ""
+                else:
+                    worse = (c["value"] > 0) == (t["better"] == "lower")
+                    colour = None
+                    cls = "ns" if c["insignificant"] else ("cost" if c["significant"] and worse else
+                                                            "gain" if c["significant"] else "")
+                title = f"n = {c['n']} scene(s)" + ("" if col["group"] is None else f", {col['group']}")
+                if col["effect"]:
+                    title += "; " + ("within 2 SE of zero: not an effect" if c["insignificant"] else
+                                     "beyond 2 SE: an effect" if c["significant"] else "no uncertainty estimate")
+                cells.append({"text": format_cell(c), "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
+                              "cls": cls, "title": title, "mark": marks.get((t["task"], r["algorithm"], col["condition"]))})
+            rows.append({"algorithm": r["algorithm"], "cells": cells})
+        out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows))
     return out
 
 
@@ -197,6 +200,18 @@ def render_html(context: dict) -> str:
     return env.get_template("report.html").render(**context)
 
 
+def geometry_of(ground_truths: list[dict]) -> dict[str, str]:
+    """scene -> "concave" / "convex" from the scene files' tags (scenes with neither are left out)."""
+    out = {}
+    for g in ground_truths:
+        tags = set(g.get("tags") or ())
+        if "concave" in tags:
+            out[g["scene"]] = "concave"
+        elif "convex" in tags:
+            out[g["scene"]] = "convex"
+    return out
+
+
 def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
     """(task, algorithm, condition) -> "regression" / "improvement", from a stored comparison."""
     out: dict[tuple[str, str, str], str] = {}
@@ -223,14 +238,14 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
     info = run["config"].get("task_info", {})
     comparison = run.get("comparison")
     marks = markers(comparison)
-    heads = headline_tables(scores, info, marks)
+    gts = store.ground_truths(run_id)
+    heads = headline_tables(scores, info, marks, geometry_of(gts))
     tables = metric_tables(scores)
     figures = load_figures(run_dir)
     tasks = []
     for task in [h["task"] for h in heads] + [t for t in figures if t not in {h["task"] for h in heads}]:
         tasks.append({"name": task, "description": info.get(task, {}).get("description", ""),
                       "table": tables.get(task), "figures": figures.get(task, [])})
-    gts = store.ground_truths(run_id)
     for g in gts:
         n = g.get("noise") or {}
         g["noise_rms"] = n.get("radiance_rel_sd_rms")

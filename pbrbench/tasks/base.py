@@ -53,7 +53,9 @@ class Job:
 class Score:
     """One number: what was measured, on what, by which algorithm, and how long it took.
 
-    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated).
+    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated), from the
+    replicate values ``rep_a``, ``rep_b`` (the two half-sample renders) and ``rep_noise`` (a second
+    seed): :mod:`pbrbench.bench.uncertainty`.
     """
 
     task: str
@@ -68,6 +70,9 @@ class Score:
     better: str = "lower"            # "lower" or "higher": the direction of improvement
     unit: str = ""
     uncertainty: float = float("nan")
+    rep_a: float | None = None
+    rep_b: float | None = None
+    rep_noise: float | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -101,6 +106,17 @@ class Task:
     headline_metric: str = ""            # the metric shown in the headline table
     families: tuple[str, ...] = ()       # scene families (library file stems)
     short_families: tuple[str, ...] = ()  # the representative subset of short quality profiles
+
+    reference_condition: str = "local"   # the headline's first column; effects are costs against it
+    notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
+
+    def seed_dependent(self, job: Job) -> bool:
+        """Whether the job's inputs depend on the seed (then its standard error includes a second
+        seed, :mod:`pbrbench.bench.uncertainty`): a noise modifier with a positive level."""
+        from pbrbench.tasks._common import parse_condition
+
+        _, mods = parse_condition(job.condition)
+        return any(v > 0 for k, v in mods.items() if "noise" in k)
 
     def builtin_algorithms(self) -> list:
         """The task's own :class:`pbrbench.registry.Algorithm` entries (from the methods tables)."""

@@ -22,7 +22,12 @@ true inverse response, given the bracket as ``truth``: the quantisation/noise fl
 
 Metrics (:mod:`pbrbench.metrics.hdr`): log2 radiance RMSE after the one free global scale, per
 channel, on the brightest and darkest 1 %, ``invalid_fraction``, and the response-curve RMSE
-against the true inverse (``response_rmse``, not for the floor).
+against the true inverse (``response_rmse``, not for the floor).  The radiance errors are scored on
+the pixels the bracket *measures* (in every channel, at least one exposure neither black nor
+saturated); what no exposure measures is a property of the bracket, not of the calibration, and is
+scored separately as ``bracket_coverage`` (the measured fraction; the same for every algorithm).
+Without this, a bracket that misses part of the scene's range (``3x3stops``, ``clipped``) scores
+the guesses made for unmeasured pixels, and the true-response floor can lose to a baseline.
 """
 
 from __future__ import annotations
@@ -99,6 +104,13 @@ class HDRTask(Task):
     conditions = CONDITIONS
     headline_metric = "log2_rmse"
     families = SCENES
+    reference_condition = "global+noise0"
+    notes = ("Radiometric calibration does not depend on light transport (the camera sees radiance, "
+             "however it arose), so this task has no local/area/global axis: its conditions are the "
+             "camera's (noise, bracket, clipping), and the reference is the noise-free bracket.")
+
+    def seed_dependent(self, job) -> bool:
+        return True  # the camera's noise and the calibrations' pixel samples follow the seed
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.hdr import CALIBRATION_METHODS
@@ -125,11 +137,16 @@ class HDRTask(Task):
         cam, times = camera_setup(job.condition, rad[mask])
         cap_seed = int(C.job_rng(job, seed).integers(0, 2 ** 31 - 1))
         br = cam.capture(rad, times, seed=cap_seed)
+        top = br.levels - 1
+        measured = np.all(np.any((br.images > 0) & (br.images < top), axis=0), axis=-1)
+        domain = mask & measured
+        coverage = float(domain.sum() / max(mask.sum(), 1))
         book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:truth (radiance)"] = C.display(rad)
         k_mid = len(times) // 2
         res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = C.display(br.images[k_mid].astype(float) / (br.levels - 1))
+        res.images["pixels no exposure measures (white)"] = C.display((mask & ~measured).astype(float))
         levels = np.arange(br.levels)
         curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
         shown = set()
@@ -150,17 +167,19 @@ class HDRTask(Task):
                 book.add(alg.name, {"failed": 1.0}, t.seconds)
                 res.failures[alg.name] = err
                 continue
-            sc = hdr_scores(est, rad, mask=mask)
+            sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+            sc["bracket_coverage"] = coverage
             if alg.kind != "floor":
                 sc["response_rmse"] = response_rmse(resp.inverse, br.true_inverse)
                 curves[alg.name] = np.log2(np.maximum(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)], 1e-12))
             book.add(alg.name, sc, t.seconds)
             if alg.kind in ("method", "baseline") and alg.kind not in shown:  # the first of each
                 shown.add(alg.kind)
-                res.images[f"linear:merged: {alg.name}"] = C.display(est / np.exp(np.mean(np.log(est[mask] / rad[mask]))))
+                dom = domain if domain.any() else mask
+                res.images[f"linear:merged: {alg.name}"] = C.display(est / np.exp(np.mean(np.log(est[dom] / rad[dom]))))
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lr = np.log2(C.grey(est) / C.grey(rad))
-                lr = np.where(mask, lr - np.nanmedian(lr[mask]), np.nan)
+                lr = np.where(dom, lr - np.nanmedian(lr[dom]), np.nan)
                 res.error_maps[f"log2 radiance error (stops): {alg.name}"] = C.display_map(lr)
         res.plots["inverse response (green channel)"] = C.profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",

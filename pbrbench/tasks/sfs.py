@@ -87,7 +87,7 @@ class SFSTask(Task):
     conditions = ("local", f"local+noise{NOISE:g}", "area", "global")
     headline_metric = "normal_mean_deg"
     families = FAMILIES
-    short_families = ("sfs_sphere",)
+    short_families = ("sfs_sphere", "sfs_vase")   # the vase stands on a plane: interreflection
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.sfs import LIGHT_METHODS, METHODS

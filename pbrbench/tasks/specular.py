@@ -61,6 +61,11 @@ class SpecularTask(Task):
                    "§1.1 recipe), scored against the diffuse-only twin render.")
     conditions = ("global", f"global+noise{NOISE:g}")
     headline_metric = "inside_rel"
+    reference_condition = "global"
+    notes = ("No local/area axis: the chapter's recipe (find small bright blobs, fill them from their "
+             "surroundings) does not model light transport, and an area source's glossy lobe is not a "
+             "small blob, so a direct-only or area-source twin would measure the detector's size prior, "
+             "not the cost of an effect. The noise column is the cost of camera noise.")
     families = FAMILIES
     short_families = ("specular_sphere",)
 

@@ -109,14 +109,19 @@ def test_user_strings_are_escaped(report):
     assert html.count("&lt;script&gt;") >= 3  # task description, scene names, image caption
 
 
-def test_headline_aggregates_stored_scores():
-    scores = [{"task": "t", "scene": s, "condition": c, "algorithm": "a", "metric": "m", "value": v, "better": "lower"}
-              for s, c, v in (("x", "local", 1.0), ("y", "local", 3.0), ("x", "global", 5.0))]
-    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "conditions": ["local", "area", "global"]}})
-    assert h["conditions"] == ["local", "global"]
-    cells = h["rows"][0]["cells"]
-    assert [c["value"] for c in cells] == [2.0, 5.0] and [c["n"] for c in cells] == [2, 1]
-    assert cells[0]["colour"].startswith("hsl(120") and cells[1]["colour"].startswith("hsl(0")
+def test_headline_is_the_reference_and_the_cost_of_each_effect_on_matched_scenes():
+    scores = [{"task": "t", "scene": s, "condition": c, "algorithm": a, "metric": "m", "value": v, "better": "lower",
+               "uncertainty": 0.1, "scene_hash": s}
+              for a, s, c, v in (("a", "x", "local", 1.0), ("a", "y", "local", 3.0), ("a", "x", "global", 5.0),
+                                 ("b", "x", "local", 2.0), ("b", "y", "local", 1.0), ("b", "x", "global", 2.1))]
+    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "conditions": ["local", "area", "global"],
+                                          "reference_condition": "local"}})
+    assert h["conditions"] == ["local", "global − local"]
+    (ra, rb) = h["rows"]
+    assert [c["value"] for c in ra["cells"]] == [2.0, 4.0] and [c["n"] for c in ra["cells"]] == [2, 1]
+    assert ra["cells"][1]["cls"] == "cost" and rb["cells"][1]["cls"] == "ns"  # 0.1 is within 2 SE
+    assert ra["cells"][0]["text"].startswith("2 ±") and rb["cells"][1]["text"].startswith("+0.1")
+    assert rb["cells"][0]["colour"].startswith("hsl(120") and ra["cells"][0]["colour"].startswith("hsl(0,")
 
 
 def test_report_cli_rerenders_from_store_only(report, tmp_path):
