@@ -27,7 +27,6 @@ from collections import defaultdict
 
 from pbrbench.uncertainty import finite, mean_se, paired_se, significant
 
-
 SPLIT_BASES = ("global",)   # conditions whose cost depends on whether a surface sees itself
 
 

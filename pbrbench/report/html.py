@@ -250,6 +250,8 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         n = g.get("noise") or {}
         g["noise_rms"] = n.get("radiance_rel_sd_rms")
         g["noise_median"] = n.get("radiance_rel_sd_median")
+        g["inputs_rms"] = n.get("inputs_rel_sd_rms")
+        g["inputs_median"] = n.get("inputs_rel_sd_median")
         g["res_text"] = "×".join(str(x) for x in g["resolution"]) if g.get("resolution") else ""
     meta_rows = [("run", run["id"]), ("time (UTC)", run["time"]), ("finished", run.get("finished") or ""),
                  ("status", run["status"]), ("quality", run["quality"]), ("variant", run.get("variant") or ""),
