@@ -24,10 +24,15 @@ def write_previews(gt: GroundTruth, out: str | Path) -> list[Path]:
         p = out / f"{name}.png"
         if name.endswith("_delta"):
             p = out / f"{name[:-6]}_sd.png"
-            base = gt.arrays[name[:-6]].mean(-1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                rel = np.where(base > 1e-3 * base.max(), np.abs(a).mean(-1) / base, np.nan)
-            write_colormap_png(p, rel, label="relative sd (Monte Carlo noise)", cmap="magma")
+            base = gt.arrays[name[:-6]]
+            if base.ndim == 3 and name[:-6] != "normals":
+                b = base.mean(-1)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rel = np.where(b > 1e-3 * b.max(), np.abs(a).mean(-1) / b, np.nan)
+                write_colormap_png(p, rel, label="relative sd (Monte Carlo noise)", cmap="magma")
+            else:
+                sd = np.linalg.norm(a, axis=-1) if a.ndim == 3 else np.abs(a)
+                write_colormap_png(p, sd, label="sd (Monte Carlo noise)", cmap="magma", mask=mask)
         elif name in RADIANCE_LIKE or name.startswith("light"):
             write_preview(p, np.maximum(a, 0), exposure=exposure)
         elif name == "albedo":
