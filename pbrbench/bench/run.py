@@ -27,7 +27,7 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from pbrbench.bench.executors import make_executor, worker_source
+from pbrbench.bench.executors import blas_threads, job_threads, make_executor, worker_source
 from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
@@ -105,7 +105,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
     c0 = time.process_time()
     try:
         src = worker_source(source)
-        with RENDER_LOCK:
+        with RENDER_LOCK, blas_threads(job_threads()):
             gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
             result = task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
             reps = {}
