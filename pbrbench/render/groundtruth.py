@@ -39,7 +39,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 4  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 5  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "depth")  # AOVs whose half-sample deltas are kept
 
