@@ -14,13 +14,12 @@ from pbrbench.infer.hdr._common import (
     check_noise_model,
     check_response,
     check_times,
-    estimate_noise_levels,
     fill_unexposed,
     response_table,
 )
 from pbrbench.infer.hdr.response import CameraResponse
 
-__all__ = ["merge_granados2010"]
+__all__ = ["estimate_noise_levels", "merge_granados2010"]
 
 
 def merge_granados2010(images, exposure_times, response: CameraResponse, *,
@@ -59,7 +58,7 @@ def merge_granados2010(images, exposure_times, response: CameraResponse, *,
 
     Noise model: ``noise_model = (read_noise, full_well)`` when the camera is known (``np.inf``
     for no shot noise); otherwise ``(\sigma_r^2, 1 / N_{fw})`` are estimated from the bracket
-    by :func:`~pbrbench.infer.hdr._common.estimate_noise_levels` (the spread of the
+    by :func:`estimate_noise_levels` (the spread of the
     differences ``x_{k+1} - r_k x_k`` of adjacent exposures at each level, with its mean
     removed so that calibration and exposure-time errors do not count as noise).
 
@@ -161,3 +160,105 @@ def merge_granados2010(images, exposure_times, response: CameraResponse, *,
     if return_mask:
         return rad, np.ascontiguousarray(np.moveaxis(saturated, 0, 2))
     return rad
+
+
+def estimate_noise_levels(Z: np.ndarray, t: np.ndarray, inv: np.ndarray, q: np.ndarray, c: int,
+                          max_pixels: int = 16384, min_count: int = 8, n_bins: int = 48) -> tuple[float, float]:
+    r"""Fit the camera noise model ``var(x) = a + b x`` (``a = sigma_r^2``, ``b = 1 / N_fw``,
+    ``a, b >= 0``) of channel ``c`` from the spread of adjacent exposures.
+
+    For each pair of adjacent exposures ``k, k+1`` (ratio ``r = t_{k+1} / t_k``) the
+    differences ``d = x_{k+1} - r x_k`` of a pixel cancel its radiance and have
+
+    .. math:: \mathrm{var}(d) = a (1 + r^2) + b (\bar x_{k+1} + r^2 \bar x_k)
+              + \bar q_{k+1} + r^2 \bar q_k,
+
+    with ``q`` the known quantisation variance.  Pixels are grouped by the mean of ``x_k`` over
+    their 8 neighbours (independent of the pixel's own noise, so the grouping does not select
+    the noise: grouping by the pixel's own level would), and only the spread about each group's
+    mean counts, so a calibration error or a mis-stated exposure time (a systematic offset of
+    ``d``) is not taken for noise.  Differences beyond 4 robust standard deviations of their
+    group (edges, motion) are dropped first.  Pairs where either level is black or clipped are
+    left out, and so are groups whose prediction ``r x_k`` is above 0.8 (their partner is
+    censored by clipping).  ``(a, b)`` is the weighted least-squares fit of the group variances
+    (weights ``n / var^2``: relative errors, ``var`` floored at its 10th percentile over the
+    groups), with ``a`` or ``b`` clamped at 0 if the unconstrained fit is negative.
+
+    ``Z``: (K, H, W, C) levels; ``t``: (K,) times; ``inv``: (levels, C) inverse response
+    (gauge ``inv[-1] = 1``); ``q``: (levels,) quantisation variance of channel ``c``; at most
+    about ``max_pixels`` pixels (a regular grid) are used per pair.  Returns ``(a, b)``;
+    ``(0, 0)`` when no group has ``min_count`` pixels.
+    """
+    K, H, W = Z.shape[:3]
+    levels = inv.shape[0]
+    top = levels - 1
+    x = inv[:, c]
+    if H < 3 or W < 3:
+        return 0.0, 0.0
+    step = max(1, int(np.sqrt((H - 2) * (W - 2) / max_pixels)))
+    ys, xs = slice(1, H - 1, step), slice(1, W - 1, step)
+    offs = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if dy or dx]
+
+    def around(k):  # mean of x over the 8 neighbours of the grid pixels
+        acc = 0.0
+        for dy, dx in offs:
+            acc = acc + x[Z[k, 1 + dy:H - 1 + dy:step, 1 + dx:W - 1 + dx:step, c]]
+        return (acc / 8.0).ravel()
+
+    edges = np.linspace(0.0, 1.0, n_bins + 1) ** 2  # finer bins at the dark end
+    groups = []
+    for k in range(K - 1):
+        r = t[k + 1] / t[k]
+        za = Z[k, ys, xs, c].ravel().astype(np.intp)
+        zb = Z[k + 1, ys, xs, c].ravel().astype(np.intp)
+        prox = around(k)
+        ok = (za > 0) & (za < top) & (zb > 0) & (zb < top) & (r * prox <= 0.8)
+        if not ok.any():
+            continue
+        za, zb, prox = za[ok], zb[ok], prox[ok]
+        gid = np.clip(np.searchsorted(edges, prox * r / 0.8, side="right") - 1, 0, n_bins - 1)
+        groups.append((gid + k * n_bins, za, zb, np.full(za.size, r)))
+    if not groups:
+        return 0.0, 0.0
+    g, za, zb, rr = (np.concatenate(a) for a in zip(*groups, strict=True))
+    m = (K - 1) * n_bins
+    d = x[zb] - rr * x[za]
+    # robust rejection: median and MAD per group (by sorting within groups)
+    order = np.lexsort((d, g))
+    gs, ds = g[order], d[order]
+    start = np.searchsorted(gs, np.arange(m), side="left")
+    cnt = np.bincount(gs, minlength=m)
+    med = np.where(cnt > 0, ds[np.minimum(start + cnt // 2, ds.size - 1)], 0.0)
+    dev = np.abs(d - med[g])
+    order2 = np.lexsort((dev, g))
+    devs = dev[order2]
+    mad = np.where(cnt > 0, devs[np.minimum(start + cnt // 2, devs.size - 1)], 0.0)
+    keep = dev <= 4.0 * 1.4826 * mad[g] + 1e-12
+    g, za, zb, rr, d = g[keep], za[keep], zb[keep], rr[keep], d[keep]
+    n = np.bincount(g, minlength=m).astype(float)
+    nn = np.maximum(n, 1.0)
+    mean = np.bincount(g, weights=d, minlength=m) / nn
+    var = np.bincount(g, weights=(d - mean[g]) ** 2, minlength=m) / np.maximum(nn - 1, 1)
+    qs = np.bincount(g, weights=q[zb] + rr * rr * q[za], minlength=m) / nn
+    u1 = np.bincount(g, weights=x[zb] + rr * rr * x[za], minlength=m) / nn
+    u0 = np.bincount(g, weights=1 + rr * rr, minlength=m) / nn
+    good = n >= min_count
+    if not good.any():
+        return 0.0, 0.0
+    u0, u1, v, n = u0[good], u1[good], var[good], n[good]
+    y = v - qs[good]
+    # relative weights; the floor keeps a few groups of (nearly) constant differences (a black
+    # or clipped plateau seen through a coarse level) from dominating the fit
+    wgt = n / np.maximum(v, max(float(np.percentile(v, 10)), 1e-30)) ** 2
+    G = np.array([[np.sum(wgt * u0 * u0), np.sum(wgt * u0 * u1)], [np.sum(wgt * u0 * u1), np.sum(wgt * u1 * u1)]])
+    h = np.array([np.sum(wgt * u0 * y), np.sum(wgt * u1 * y)])
+    det = G[0, 0] * G[1, 1] - G[0, 1] ** 2
+    if det > 1e-12 * G[0, 0] * G[1, 1]:
+        a = (G[1, 1] * h[0] - G[0, 1] * h[1]) / det
+        b = (G[0, 0] * h[1] - G[0, 1] * h[0]) / det
+        if a >= 0 and b >= 0:
+            return float(a), float(b)
+    fits = [(max(h[0] / G[0, 0], 0.0) if G[0, 0] > 0 else 0.0, 0.0),
+            (0.0, max(h[1] / G[1, 1], 0.0) if G[1, 1] > 0 else 0.0)]
+    sse = [float(np.sum(wgt * (y - f[0] * u0 - f[1] * u1) ** 2)) for f in fits]
+    return fits[int(np.argmin(sse))]

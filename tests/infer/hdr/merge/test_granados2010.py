@@ -5,7 +5,7 @@ import pytest
 
 from pbrbench.camera import Camera
 from pbrbench.infer.hdr import CameraResponse, merge_debevec1997, merge_granados2010
-from pbrbench.infer.hdr._common import estimate_noise_levels
+from pbrbench.infer.hdr.merge.granados2010 import estimate_noise_levels
 from tests.infer.hdr._data import TIMES, linear_bracket, log2_rmse, scene, true_response
 
 
