@@ -116,7 +116,12 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
     r = np.abs(jsum - s @ g)
     free = used & (r > 1e-9 * scale)
     sig_r = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
-    used &= r <= np.maximum(5.0 * sig_r, 1e-6 * scale)
+    inl = used & (r <= np.maximum(5.0 * sig_r, 1e-6 * scale))
+    # never reject below min_lights: a pixel left with fewer inliers keeps its used lights
+    # (on near-noise-free renders the image-wide sigma is tiny and the rejection would leave
+    # 1-2 lights on every pixel whose residual is a little larger: ps_cup direct, 6 lights)
+    few = inl.sum(axis=0) < p.min_lights
+    used = np.where(few[None, :], used, inl)
     amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used)
     g_ls, ok = sym_solve(amat[:6], bsum)
     g = np.where(ok, g_ls, g)
