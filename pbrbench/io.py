@@ -79,6 +79,22 @@ def write_exr(path: str | os.PathLike, arrays: dict[str, np.ndarray], header: di
         f.write(str(path))
 
 
+def write_exr_image(path: str | os.PathLike, image: np.ndarray) -> None:
+    """One float32 image as a plain EXR any program reads: channel ``Y`` for (H, W), ``R G B``
+    (and ``A``) for (H, W, 3) / (H, W, 4), ZIP-compressed (lossless)."""
+    import OpenEXR
+
+    a = np.asarray(image, np.float32)
+    if a.ndim == 2:
+        chans = {"Y": np.ascontiguousarray(a)}
+    elif a.ndim == 3 and a.shape[2] in (3, 4):
+        chans = {c: np.ascontiguousarray(a[..., i]) for i, c in enumerate("RGBA"[:a.shape[2]])}
+    else:
+        raise ValueError(f"write_exr_image: shape {a.shape}; give (H, W), (H, W, 3) or (H, W, 4)")
+    with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}, chans) as f:
+        f.write(str(path))
+
+
 def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read an EXR written by :func:`write_exr` back into named float32 arrays."""
     import OpenEXR
