@@ -48,10 +48,11 @@ def run(args) -> int:
         raise UserError(f"{d}: no such folder")
     if (d / "manifest.json").is_file():
         return _export(args, name, d)
-    from pbrbench.datasets import evaluate_folder
+    from pbrbench.bench.realdata import evaluate_folder
 
     result = evaluate_folder(name, d, methods=args.method, specs=args.algorithm, predictions=args.predictions,
-                             name=args.name, log=lambda m: print(f"pbrbench: {m}", file=sys.stderr))
+                             name=args.name, settings=settings(args), report=not args.no_report,
+                             log=lambda m: print(f"pbrbench: {m}", file=sys.stderr))
     for line in result.lines():
         print(line)
     if args.json:
