@@ -32,6 +32,47 @@ from pbrbench.errors import UserError
 CONDITION = "real"
 
 
+def _one_line(e: BaseException) -> str:
+    return f"{type(e).__name__}: {' '.join(str(e).split())}"[:300]
+
+
+def _call(alg, *args, check, **kwargs):
+    """(output, seconds, error): an algorithm's exception or unusable output is its failure."""
+    import warnings
+
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out = alg(*args, **kwargs)
+        seconds = time.perf_counter() - t0
+        return check(out), seconds, None
+    except Exception as e:  # noqa: BLE001 - a user's algorithm may raise anything
+        return None, time.perf_counter() - t0, _one_line(e)
+
+
+def _scores(job, scene_hash, alg, values: dict, seconds: float) -> list:
+    from pbrbench.metrics import metric
+    from pbrbench.tasks.base import Score
+
+    return [Score(task=job.task, scene=job.scene, scene_hash=scene_hash, condition=job.condition, algorithm=alg.name,
+                  algorithm_version=alg.full_version, metric=k, value=float(v), seconds=float(seconds),
+                  better=metric(k).better, unit=metric(k).unit) for k, v in values.items()]
+
+
+def _thumb(a, mask=None, normals=False, size: int = 128) -> np.ndarray:
+    """A small float32 copy for the report (block means), normals as (n + 1) / 2."""
+    a = np.nan_to_num(np.asarray(a, np.float64))
+    if normals:
+        a = np.clip((a + 1) / 2, 0, 1)
+    if mask is not None:
+        a = np.where(mask.reshape(mask.shape + (1,) * (a.ndim - 2)), a, 0.0)
+    f = max(1, -(-max(a.shape[:2]) // size))
+    h, w = a.shape[0] // f * f, a.shape[1] // f * f
+    a = a[:h, :w].reshape((h // f, f, w // f, f) + a.shape[2:]).mean(axis=(1, 3))
+    return a.astype(np.float32)
+
+
 @dataclass
 class Evaluation:
     task: str
@@ -115,7 +156,7 @@ def _algorithms(task, methods, specs, extra) -> list:
 
 
 def _prediction_file(pdir: Path, obj: str, stem: str) -> Path | None:
-    from pbrbench.datasets._files import find_stem
+    from pbrbench.datasets.files import find_stem
 
     for folder, s in ((pdir / obj, stem), (pdir, f"{obj}_{stem}"), (pdir, obj if stem == "normals" else "")):
         if s and folder.is_dir():
@@ -204,7 +245,6 @@ def _file_alg(task, fn, name, pdir):
 def _diligent(objs, root, methods, specs, predictions, name, settings, store_run, report, log) -> Evaluation:
     from pbrbench.datasets.diligent import frame_check, load_diligent
     from pbrbench.metrics.normals import angular_error_map, angular_error_stats
-    from pbrbench.tasks import _common as C
     from pbrbench.tasks.base import Job, JobResult
     from pbrbench.tasks.photometric_stereo import TASK, result_arrays
 
@@ -225,17 +265,18 @@ def _diligent(objs, root, methods, specs, predictions, name, settings, store_run
         if reader is not None:
             reader.current = obj
         job = Job(TASK.name, f"diligent:{obj.name}", CONDITION)
-        book = C.ScoreBook(job, _digest(obj.files), algs)
+        digest = _digest(obj.files)
         res = JobResult(job)
-        res.images["linear:input (light 0)"] = C.display(obj.grey[0])
-        res.images["normals: truth"] = C.normals_display(obj.normals, obj.mask)
+        res.images["linear:input (light 0)"] = _thumb(obj.grey[0])
+        res.images["normals: truth"] = _thumb(obj.normals, obj.mask, normals=True)
         g = obj.grey
         for alg in algs:
             if log:
                 log(f"{obj.name}: {alg.name}")
-            out, seconds, err = C.call(alg, g, obj.lights, mask=obj.mask, check=lambda o, hw=g.shape[1:3]: result_arrays(o, hw))
+            out, seconds, err = _call(alg, g, obj.lights, mask=obj.mask,
+                                      check=lambda o, hw=g.shape[1:3]: result_arrays(o, hw))
             if err is not None:
-                book.add(alg.name, {"failed": 1.0}, seconds)
+                res.scores += _scores(job, digest, alg, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
                 ev.failures.append(f"{obj.name}: {alg.name}: {err}")
                 ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": {}, "error": err})
@@ -246,11 +287,11 @@ def _diligent(objs, root, methods, specs, predictions, name, settings, store_run
             sc = {"normal_mean_deg": st["mean"], "normal_median_deg": st["median"],
                   "normal_frac_under_5deg": st["frac_under_5"], "normal_frac_under_10deg": st["frac_under_10"],
                   "coverage": float((valid & obj.mask).sum() / obj.mask.sum())}
-            book.add(alg.name, sc, seconds)
+            res.scores += _scores(job, digest, alg, sc, seconds)
             ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": sc, "seconds": seconds})
-            res.images[f"normals: {alg.name}"] = C.normals_display(n, obj.mask)
-            res.error_maps[f"angular error (deg): {alg.name}"] = C.display_map(angular_error_map(n, obj.normals, obj.mask))
-        res.scores = book.scores
+            res.images[f"normals: {alg.name}"] = _thumb(n, obj.mask, normals=True)
+            res.error_maps[f"angular error (deg): {alg.name}"] = _thumb(
+                np.where(obj.mask, angular_error_map(n, obj.normals, obj.mask), np.nan))
         jobs.append(res)
     if store_run and jobs:
         _store(ev, jobs, TASK, algs, settings, report, f"photometric stereo on {root}")
@@ -258,8 +299,8 @@ def _diligent(objs, root, methods, specs, predictions, name, settings, store_run
 
 
 def _mit(objs, root, methods, specs, predictions, name, settings, store_run, report, log) -> Evaluation:
+    from pbrbench.checks import as_float_array, check_finite
     from pbrbench.datasets.mit import EVALUATED, load_mit_object, mit_scores
-    from pbrbench.tasks import _common as C
     from pbrbench.tasks.base import Job, JobResult
     from pbrbench.tasks.lightness import TASK
 
@@ -267,46 +308,58 @@ def _mit(objs, root, methods, specs, predictions, name, settings, store_run, rep
     algs = _algorithms(TASK, methods, specs, [_file_alg(TASK.name, reader, name, predictions)] if reader else [])
     ev = Evaluation(TASK.name, f"MIT-Intrinsic-layout data in {root}", headline=("intrinsic_lmse",))
     jobs = []
+
+    def grey2d(a, what, shape, m):
+        a = as_float_array(a, what)
+        a = a.mean(-1) if a.ndim == 3 else a
+        if a.shape != shape:
+            raise ValueError(f"{what}: returned shape {a.shape}, expected {shape}")
+        check_finite(a, what, where=m)
+        return a
+
     for path in objs:
         obj = load_mit_object(path)
         if reader is not None:
             reader.current = obj
         job = Job(TASK.name, f"mit:{obj.name}", CONDITION)
-        book = C.ScoreBook(job, _digest(p for p in obj.path.iterdir() if p.is_file()), algs)
+        digest = _digest(p for p in obj.path.iterdir() if p.is_file())
         res = JobResult(job)
         img = obj.image
-        res.images["linear:input (diffuse, grey)"] = C.display(img)
-        res.images["reflectance: truth"] = C.display(np.clip(obj.reflectance_grey / max(obj.reflectance_grey.max(), 1e-12), 0, 1))
+        res.images["linear:input (diffuse, grey)"] = _thumb(img)
+        res.images["reflectance: truth"] = _thumb(obj.reflectance_grey / max(obj.reflectance_grey.max(), 1e-12))
 
         def check(o, shape=img.shape, m=obj.mask):
-            r, s = C.attribute(o, "reflectance", 0), C.attribute(o, "shading", 1)
+            if isinstance(o, dict):
+                r, s = o.get("reflectance"), o.get("shading")
+            elif isinstance(o, (tuple, list)) and len(o) >= 2:
+                r, s = o[0], o[1]
+            else:
+                r, s = getattr(o, "reflectance", None), getattr(o, "shading", None)
             if r is None or s is None:
                 raise ValueError("output: return (reflectance, shading) of the image's shape")
-            r, s = np.asarray(r, float), np.asarray(s, float)
-            r = r.mean(-1) if r.ndim == 3 else r
-            s = s.mean(-1) if s.ndim == 3 else s
-            return C.check_array(r, "reflectance", shape, where=m), C.check_array(s, "shading", shape, where=m)
+            return grey2d(r, "reflectance", shape, m), grey2d(s, "shading", shape, m)
 
         for alg in algs:
             if log:
                 log(f"{obj.name}: {alg.name}")
-            out, seconds, err = C.call(alg, img, mask=obj.mask, check=check)
+            out, seconds, err = _call(alg, img, mask=obj.mask, check=check)
             if err is None:
                 try:
                     sc = mit_scores(out[0], out[1], obj)
                 except ValueError as e:
-                    err = C.one_line(e)
+                    err = _one_line(e)
             if err is not None:
-                book.add(alg.name, {"failed": 1.0}, seconds)
+                res.scores += _scores(job, digest, alg, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
                 ev.failures.append(f"{obj.name}: {alg.name}: {err}")
                 ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": {}, "error": err})
                 continue
-            book.add(alg.name, {"intrinsic_lmse": sc["intrinsic_lmse"], "lmse": sc["lmse_reflectance"]}, seconds)
+            res.scores += _scores(job, digest, alg, {"intrinsic_lmse": sc["intrinsic_lmse"], "lmse": sc["lmse_reflectance"]},
+                                  seconds)
             ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": sc, "seconds": seconds})
             r = out[0]
-            res.images[f"reflectance: {alg.name}"] = C.display(np.clip(r / max(float(np.max(r[obj.mask])) if obj.mask.any() else 1.0, 1e-12), 0, 1))
-        res.scores = book.scores
+            peak = float(np.max(r[obj.mask])) if obj.mask.any() else 1.0
+            res.images[f"reflectance: {alg.name}"] = _thumb(np.clip(r / max(peak, 1e-12), 0, 1))
         jobs.append(res)
     if {Path(p).name for p in objs} != set(EVALUATED):
         ev.notes.append("the published table averages exactly the 16 objects of pbrbench.datasets.mit.EVALUATED; "

@@ -100,12 +100,11 @@ def _ps_input(d: Path, drop: int):
         return obj.name, obj.grey[sel], obj.lights[sel], obj.mask, obj.normals, 1.0, "DiLiGenT layout"
     if (d / "gt.json").is_file() and (d / "gt.exr").is_file():
         from pbrbench import io
-        from pbrbench.tasks._common import grey
 
         r = io.load_render(d)
         if r.light_vectors is None:
             raise UserError(f"{d}/gt.json: the scene has no light set (no per-light images)")
-        imgs = grey(r.light_stack("radiance"))[drop:]
+        imgs = r.light_stack("radiance").astype(np.float64).mean(axis=-1)[drop:]   # grey, as the benchmark
         return (r.meta.get("scene", d.name), imgs, r.light_vectors[drop:], r.mask,
                 r["normals"].astype(float), float(r.camera.get("pixel_size", 1.0)), "pbrbench render")
     raise UserError(f"{d}: neither a DiLiGenT object folder (light_directions.txt, 001.png ..., mask.png) nor a "
@@ -177,7 +176,7 @@ def _srgb_decode(x):
 def _rx_input(path: Path, gamma: str, mask_file):
     from pbrbench import io
     from pbrbench.datasets import is_mit, load_mit_object
-    from pbrbench.datasets._files import read_mask
+    from pbrbench.datasets.files import read_mask
 
     if path.is_dir():
         if not is_mit(path):

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.datasets._files import IMAGE_SUFFIXES, find, read_lines
+from pbrbench.datasets.files import IMAGE_SUFFIXES, find, read_lines
 from pbrbench.errors import UserError
 
 __all__ = ["Bracket", "load_bracket", "parse_time"]

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.datasets._files import find, find_stem, read_lines, read_mask, read_table, to_float
+from pbrbench.datasets.files import find, find_stem, read_lines, read_mask, read_table, to_float
 from pbrbench.errors import UserError
 
 __all__ = ["DiLiGenTObject", "load_diligent", "diligent_objects", "is_diligent", "frame_check", "read_normals"]

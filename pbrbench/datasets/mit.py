@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.datasets._files import find_stem, read_mask, to_float
+from pbrbench.datasets.files import find_stem, read_mask, to_float
 from pbrbench.errors import UserError
 
 __all__ = ["MITObject", "load_mit_object", "mit_objects", "is_mit", "mit_scores", "EVALUATED", "WINDOW", "STEP"]

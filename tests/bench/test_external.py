@@ -26,7 +26,16 @@ from pbrbench.tasks.lightness import LightnessTask
 from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 from pbrbench.tasks.sfs import SFSTask
 from pbrbench.tasks.specular import SpecularTask
-from tests.fakes import FakeSource, hdr_gt, mondrian_gt, ps_gt, ps_job, settings_for, sfs_gt, specular_gt
+from tests.fakes import (
+    FakeSource,
+    hdr_gt,
+    mondrian_gt,
+    ps_gt,
+    ps_job,
+    settings_for,
+    sfs_gt,
+    specular_gt,
+)
 
 ROOT = Path(__file__).resolve().parents[2]
 

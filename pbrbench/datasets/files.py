@@ -1,4 +1,5 @@
-"""File helpers shared by the data-set loaders: case-insensitive look-ups, text tables, masks."""
+"""File helpers of the data-set loaders (public: the infer command reads masks with them):
+case-insensitive look-ups, numeric text tables, masks of any bit depth, integer -> float scaling."""
 
 from __future__ import annotations
 
