@@ -61,6 +61,18 @@ def summary_lines(outcome) -> list[str]:
     return lines
 
 
+def failure_lines(scores) -> list[str]:
+    """One line per algorithm scored as failed somewhere (the messages are in the report)."""
+    failed, total = {}, {}
+    for s in scores:
+        if s["metric"] == "failed":
+            key = (s["task"], s["algorithm"])
+            total[key] = total.get(key, 0) + 1
+            failed[key] = failed.get(key, 0) + int(s["value"] == 1.0)
+    return [f"pbrbench: {a} ({t}) scored as failed on {n} of {total[(t, a)]} job(s); the reasons are in the report's "
+            "'Algorithms scored as failed'" for (t, a), n in failed.items() if n]
+
+
 def run(args) -> int:
     from pbrbench.bench.run import RunConfig, run_benchmark, update_baselines
     from pbrbench.errors import UserError
@@ -93,6 +105,8 @@ def run(args) -> int:
           f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
     for line in summary_lines(o):
         print(line)
+    for line in failure_lines(o.scores):
+        print(line, file=sys.stderr)
     code = EXIT_OK
     if o.errors:
         print(f"{len(o.errors)} job(s) failed (tracebacks in the report); rerun them with "
