@@ -191,6 +191,13 @@ def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None) -> d
             folder = out / rel
             folder.mkdir(parents=True, exist_ok=True)
             written = {n: _write_input(folder, n, v) for n, v in inputs.items()}
+            if "lights" in inputs and np.ndim(inputs["lights"]) == 2:   # the vectors split, for convenience
+                lv = np.asarray(inputs["lights"], float)
+                e = np.linalg.norm(lv, axis=1)
+                written["lights"]["directions"] = (lv / np.where(e > 0, e, 1.0)[:, None]).tolist()
+                written["lights"]["irradiances"] = e.tolist()
+                written["lights"]["meaning"] = ("rows: unit direction toward the source (camera frame) x irradiance at "
+                                                "the target (W m^-2); directions and irradiances give the two factors")
             preds = [_prediction_entry(task, p, inputs) for p in task.predictions]
             record = {"format": FORMAT, "task": task.name, "key": job.key, "scene": job.scene,
                       "condition": job.condition, "params": _jsonable(list(job.params)), "seed": seed,

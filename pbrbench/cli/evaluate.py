@@ -42,7 +42,11 @@ def register(sub):
 
 
 def run(args) -> int:
+    from pbrbench.tasks import task_names
+
     name = args.task.replace("-", "_")
+    if name not in task_names():
+        raise UserError(f"TASK {args.task!r}: unknown task; choose from {', '.join(task_names())}")
     d = Path(args.dir)
     if not d.exists():
         raise UserError(f"{d}: no such folder")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import sys
 
 from pbrbench.cli.common import add_cache, add_quality, add_variant, settings
+from pbrbench.errors import UserError
 
 
 def register(sub):
@@ -33,7 +34,11 @@ def run(args) -> int:
     from pbrbench.tasks import get_tasks
 
     st = settings(args)
+    from pbrbench.tasks import task_names
+
     name = args.task.replace("-", "_")
+    if name not in task_names():
+        raise UserError(f"TASK {args.task!r}: unknown task; choose from {', '.join(task_names())}")
     task = get_tasks([name])[name]
     source = GroundTruthSource(args.quality, cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
     m = export_task(task, args.out, quality=args.quality, seed=args.seed, source=source,

@@ -188,6 +188,8 @@ def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
     assert np.array_equal(io.read_png(d / "mask.png") > 0, mask) and mask.dtype == bool
     lights = np.asarray(job["inputs"]["lights"]["value"])
     assert np.array_equal(lights, np.asarray(ps_job().param("lights"), float))   # exact, from JSON
+    e = np.asarray(job["inputs"]["lights"]["irradiances"])
+    assert np.allclose(np.asarray(job["inputs"]["lights"]["directions"]) * e[:, None], lights) and np.allclose(e, np.pi)
     assert job["predictions"][0] == {"name": "normals", "files": ["normals.exr", "normals.npy"], "shape": [40, 40, 3],
                                      "required": True, "kind": "float",
                                      "meaning": task.predictions[0].meaning}
@@ -292,3 +294,32 @@ def test_readme_of_an_export_says_what_to_write(tmp_path):
     text = (tmp_path / "e" / "README.txt").read_text()
     assert "mask.exr or mask.npy (or .png)" in text and "pbrbench evaluate specular" in text
     assert textwrap.dedent(text) == text
+
+
+@pytest.mark.render
+def test_the_commands_on_draft_renders_round_trip_exactly(tmp_path, cache_dir, capsys):
+    """`pbrbench run --algorithm` (a .py plugin that crashes beside one that works), `pbrbench export`,
+    an external program, `pbrbench evaluate`: the evaluated scores equal the run's built-in ones."""
+    from pbrbench.bench.store import Store
+    from pbrbench.cli.main import main
+
+    plugin = tmp_path / "mine.py"
+    plugin.write_text("from pbrbench.infer.lightness import lightness_blake1985\n"
+                      "def same(image, *, mask=None):\n    return lightness_blake1985(image, mask=mask, threshold=0.05)\n"
+                      "def crash(image, *, mask=None):\n    raise RuntimeError('crash')\n")
+    common = ["--quality", "draft", "--cache", str(cache_dir)]
+    store = ["--out", str(tmp_path / "rep"), "--store", str(tmp_path / "h.sqlite")]
+    assert main(["run", "--tasks", "lightness", *common, *store, "--algorithm", f"lightness={plugin}:same",
+                 "--algorithm", f"lightness={plugin}:crash"]) == 0
+    err = capsys.readouterr().err
+    assert "crash (lightness) scored as failed on" in err
+    assert main(["export", "lightness", *common, "--out", str(tmp_path / "exp")]) == 0
+    _external(tmp_path / "exp")
+    assert main(["evaluate", "lightness", str(tmp_path / "exp"), "--name", "ext", "--cache", str(cache_dir), *store]) == 0
+    with Store(tmp_path / "h.sqlite") as st:
+        runs = {r["id"]: {s["algorithm"] for s in st.scores(r["id"])} for r in st.runs()}
+        run = next(r for r, a in runs.items() if "same" in a)
+        ev = next(r for r, a in runs.items() if "ext" in a)
+        a, b = st.scores(run), st.scores(ev)
+    ref = _by_key(a, "blake1985")
+    assert _by_key(a, "same") == ref and _by_key(b, "ext") == ref and len(ref) >= 12
