@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from pbrbench.bench.run import RunConfig, run_benchmark
+from pbrbench.registry import Registry, plugin_registry
 from tests.bench.test_external import TASKS, Synthetic
 from tests.fakes import settings_for
 
@@ -38,9 +39,10 @@ def test_the_example_plugin_is_scored(tmp_path, file):
     assert 6 <= len(code.strip().splitlines()) <= 12          # "a 10-line example"
     (tmp_path / file).write_text(code)
     task = TASKS[task_name]
-    o = run_benchmark(RunConfig(quality="draft", algorithms=[f"{task_name}={tmp_path / file}:{fn}"],
-                                algorithm_time_limit=120.0, entry_points=False),
-                      settings=settings_for(tmp_path), tasks={task.name: task}, source=Synthetic(tmp_path / "cache"),
+    reg = plugin_registry({task.name: task}, [f"{task_name}={tmp_path / file}:{fn}"], entry_points=False,
+                          time_limit=120.0)
+    o = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path), tasks={task.name: task},
+                      source=Synthetic(tmp_path / "cache"), registry=Registry(reg.for_task(task.name, kinds=["plugin"])),
                       log=lambda m: None)
     mine = [s for s in o.scores if s["algorithm"] == fn]
     assert mine and not [s for s in mine if s["metric"] == "failed" and s["value"] == 1.0], \

@@ -308,6 +308,7 @@ def _wheel(tmp_path) -> Path:
     return whl
 
 
+@pytest.mark.slow
 def test_a_pip_installed_package_with_an_entry_point_is_scored_in_a_subprocess(tmp_path):
     target = tmp_path / "target"
     p = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--no-index", "--target", str(target),
@@ -351,6 +352,7 @@ def test_a_plugin_file_travels_by_value_to_another_process(tmp_path, plugin_file
     assert f"VERSION {alg.full_version} plugin (40, 40, 3)" in q.stdout
 
 
+@pytest.mark.slow
 def test_plugins_run_on_dask_workers(tmp_path, plugin_file):
     pytest.importorskip("distributed")
     from pbrbench.bench.executors import DaskExecutor

@@ -11,7 +11,8 @@ One object folder (``pmsData/ballPNG``, ``bearPNG``, ...) holds:
   so the lights become unit vectors;
 * ``mask.png``: the object mask (non-zero inside; grey or RGB, any bit depth);
 * ``Normal_gt.mat`` (MATLAB, variable ``Normal_gt``, H x W x 3), or ``Normal_gt.txt`` /
-  ``normal.txt`` (H*W rows ``nx ny nz`` in row-major pixel order), or ``Normal_gt.npy``: the
+  ``normal.txt`` (H*W rows ``nx ny nz``, row-major pixel order, or column-major -- MATLAB's
+  ``N(:)`` -- when that order explains the images better), or ``Normal_gt.npy``: the
   ground-truth normals (absent in the test objects without published normals).
 
 Frames: DiLiGenT gives normals and light directions in the camera frame **x right, y up, z toward
@@ -101,8 +102,12 @@ def _image_files(folder: Path, k: int | None) -> list[Path]:
     return nums
 
 
-def read_normals(path: Path, shape) -> np.ndarray:
-    """Ground-truth normals from a ``.mat`` / ``.npy`` / ``.exr`` / ``.txt`` file, (H, W, 3)."""
+def read_normals(path: Path, shape, choose=None) -> np.ndarray:
+    """Ground-truth normals from a ``.mat`` / ``.npy`` / ``.exr`` / ``.txt`` file, (H, W, 3).
+
+    A ``.txt`` of H*W rows is read in row-major pixel order (row 0 first), unless ``choose``
+    (a function of the two candidate fields returning 0 or 1) prefers the column-major order
+    (MATLAB's ``N(:)``); :func:`load_diligent` chooses by how well each explains the images."""
     h, w = shape
     suffix = path.suffix.lower()
     if suffix == ".mat":
@@ -126,6 +131,9 @@ def read_normals(path: Path, shape) -> np.ndarray:
         t = read_table(path)
         if t.shape == (h * w, 3):
             n = t.reshape(h, w, 3)            # one pixel per row, row-major (row 0 first)
+            if choose is not None:
+                col = t.reshape(w, h, 3).transpose(1, 0, 2)
+                n = (n, col)[choose(n, col)]
         elif t.shape == (3, h * w):
             n = t.T.reshape(h, w, 3)
         elif t.shape == (h, 3 * w):
@@ -139,8 +147,7 @@ def read_normals(path: Path, shape) -> np.ndarray:
         n = np.asarray(read_image(path), np.float64)
     if n.shape != (h, w, 3):
         raise UserError(f"{path}: normals of shape {n.shape}, the images are {h} x {w}")
-    norm = np.linalg.norm(np.nan_to_num(n), axis=-1, keepdims=True)
-    return np.where(norm > 0, np.nan_to_num(n) / np.where(norm > 0, norm, 1.0), 0.0)
+    return _unit(n)
 
 
 def load_diligent(folder, *, indices=None, normals: bool = True, log=None) -> DiLiGenTObject:
@@ -202,11 +209,33 @@ def load_diligent(folder, *, indices=None, normals: bool = True, log=None) -> Di
     if normals:
         nf = find(folder, *NORMAL_FILES)
         if nf is not None:
-            n = read_normals(nf, (h, w))
+            def choose(*fields):          # the order whose Lambertian shading fits the images best
+                fits = [_fit(imgs.mean(-1), dirs, _unit(f), mask) for f in fields]
+                return int(np.argmax(fits))
+
+            n = read_normals(nf, (h, w), choose)
             n = np.where(mask[..., None], n, 0.0)
             if np.any(mask & (np.linalg.norm(n, axis=-1) == 0)):
                 mask = mask & (np.linalg.norm(n, axis=-1) > 0)   # no normal: not scored
     return DiLiGenTObject(folder.name, folder, imgs, dirs, ints, mask, n, files)
+
+
+def _unit(n):
+    norm = np.linalg.norm(np.nan_to_num(n), axis=-1, keepdims=True)
+    return np.where(norm > 0, np.nan_to_num(n) / np.where(norm > 0, norm, 1.0), 0.0)
+
+
+def _fit(grey, lights, normals, mask, samples: int = 4000) -> float:
+    """Mean per-pixel correlation over the lights between the images and ``max(0, n . l)``."""
+    idx = np.flatnonzero((mask & (np.linalg.norm(normals, axis=-1) > 0)).ravel())
+    if idx.size == 0:
+        return -1.0
+    idx = np.random.default_rng(0).choice(idx, size=min(samples, idx.size), replace=False)
+    g = grey.reshape(len(lights), -1)[:, idx]
+    s = np.maximum(lights @ normals.reshape(-1, 3)[idx].T, 0.0)
+    gc, sc = g - g.mean(0), s - s.mean(0)
+    den = np.sqrt((gc * gc).sum(0) * (sc * sc).sum(0))
+    return float(np.where(den > 0, (gc * sc).sum(0) / np.where(den > 0, den, 1.0), 0.0).mean())
 
 
 def frame_check(obj: DiLiGenTObject, *, samples: int = 4000) -> dict:
@@ -216,18 +245,8 @@ def frame_check(obj: DiLiGenTObject, *, samples: int = 4000) -> dict:
     win; if a flip wins, the normals and the lights are in different frames."""
     if obj.normals is None:
         raise ValueError(f"{obj.name}: no ground-truth normals")
-    idx = np.flatnonzero(obj.mask.ravel())
-    if idx.size == 0:
+    if not obj.mask.any():
         raise ValueError(f"{obj.name}: empty mask")
-    rng = np.random.default_rng(0)
-    idx = rng.choice(idx, size=min(samples, idx.size), replace=False)
-    g = obj.grey.reshape(len(obj.lights), -1)[:, idx]          # (K, P)
-    n = obj.normals.reshape(-1, 3)[idx]                        # (P, 3)
-    out = {}
-    for label, flip in (("as_given", (1, 1, 1)), ("flip_x", (-1, 1, 1)), ("flip_y", (1, -1, 1)), ("flip_z", (1, 1, -1))):
-        s = np.maximum(obj.lights @ (n * np.asarray(flip)).T, 0.0)   # (K, P)
-        gc, sc = g - g.mean(0), s - s.mean(0)
-        den = np.sqrt((gc * gc).sum(0) * (sc * sc).sum(0))
-        r = np.where(den > 0, (gc * sc).sum(0) / np.where(den > 0, den, 1.0), 0.0)
-        out[label] = float(r.mean())
-    return out
+    flips = {"as_given": (1, 1, 1), "flip_x": (-1, 1, 1), "flip_y": (1, -1, 1), "flip_z": (1, 1, -1)}
+    return {label: _fit(obj.grey, obj.lights, obj.normals * np.asarray(f), obj.mask, samples)
+            for label, f in flips.items()}

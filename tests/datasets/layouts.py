@@ -25,7 +25,8 @@ def _write_text(path: Path, rows, *, crlf=False, fmt="{:.8f}"):
 
 
 def diligent_object(folder: Path, *, size=48, surface="sphere", normal_file="Normal_gt.mat", filenames=True,
-                    crlf=False, mask_rgb=False, flip_normals_y=False, intensities=True, filters=(4, 1, 2, 3, 0)):
+                    crlf=False, mask_rgb=False, flip_normals_y=False, intensities=True, filters=(4, 1, 2, 3, 0),
+                    column_major=False):
     """A Lambertian object in the DiLiGenT layout; returns (normals, mask, lights, intensities,
     true 16-bit images)."""
     folder.mkdir(parents=True, exist_ok=True)
@@ -55,7 +56,8 @@ def diligent_object(folder: Path, *, size=48, surface="sphere", normal_file="Nor
 
         scipy.io.savemat(folder / normal_file, {"Normal_gt": ngt})
     elif normal_file.endswith(".txt"):
-        _write_text(folder / normal_file, ngt.reshape(-1, 3), crlf=crlf)
+        rows = ngt.transpose(1, 0, 2).reshape(-1, 3) if column_major else ngt.reshape(-1, 3)
+        _write_text(folder / normal_file, rows, crlf=crlf)
     elif normal_file.endswith(".npy"):
         np.save(folder / normal_file, ngt)
     return n, mask, DIRS, ints, raw

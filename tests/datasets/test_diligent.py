@@ -33,7 +33,9 @@ def test_file_name_and_format_variations_give_the_same_object(tmp_path):
     diligent_object(tmp_path / "b", normal_file="normal.txt", filenames=False, crlf=True, mask_rgb=True,
                     filters=(1,))
     diligent_object(tmp_path / "c", normal_file="Normal_gt.npy")
+    diligent_object(tmp_path / "e", normal_file="Normal_gt.txt", column_major=True)   # MATLAB's N(:) order
     a, b, c = (load_diligent(tmp_path / x) for x in "abc")
+    assert np.allclose(load_diligent(tmp_path / "e").normals, a.normals, atol=1e-7)
     assert np.array_equal(a.images, b.images) and np.array_equal(a.mask, b.mask)
     assert np.allclose(a.normals, b.normals, atol=1e-7) and np.allclose(a.normals, c.normals, atol=1e-12)
     assert np.allclose(a.lights, b.lights, atol=1e-8)
