@@ -33,6 +33,7 @@ from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
 from pbrbench.bench.store import Store
 from pbrbench.errors import UserError
+from pbrbench.registry import DEFAULT_TIME_LIMIT
 
 
 @dataclass
@@ -52,10 +53,13 @@ class RunConfig:
     algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
     job_cache: bool = True         # reuse finished jobs whose inputs and code are unchanged
     uncertainty: bool = True       # score the half-sample replicates (the standard errors)
+    algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin call; None: in-process
+    entry_points: bool = True                     # load the installed plugins (entry points)
 
     def recorded(self) -> dict:
         return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,
-                "workers": self.workers, "algorithms": list(self.algorithms)}
+                "workers": self.workers, "algorithms": list(self.algorithms),
+                "algorithm_time_limit": self.algorithm_time_limit, "entry_points": self.entry_points}
 
 
 @dataclass
@@ -149,7 +153,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
     from pbrbench.bench import regress
-    from pbrbench.registry import builtin_registry
+    from pbrbench.registry import normalize_algorithm_spec, plugin_registry
     from pbrbench.render.quality import get_quality
     from pbrbench.report.figures import slug
     from pbrbench.settings import Settings
@@ -165,6 +169,8 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         rc = run["config"]
         cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
         cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
+        cfg.algorithm_time_limit = rc.get("algorithm_time_limit", cfg.algorithm_time_limit)
+        cfg.entry_points = rc.get("entry_points", cfg.entry_points)
         settings = settings.with_(variant=settings.variant or rc.get("variant"))
         prior_done = store.done_jobs(run_id)
     quality = get_quality(cfg.quality)
@@ -172,8 +178,10 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         tasks = load_tasks(cfg.tasks)
     if not tasks:
         raise UserError("no task to run; pass --tasks NAME (see `pbrbench run --help`)")
-    if registry is None:
-        registry = builtin_registry(tasks)
+    if registry is None:   # the built-ins, the installed plugins and the --algorithm specs
+        cfg.algorithms = [normalize_algorithm_spec(a) for a in cfg.algorithms]
+        registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
+                                   time_limit=cfg.algorithm_time_limit, log=log)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
                                          scenes=settings.scenes)
     variant = source.resolve_variant()

@@ -19,10 +19,38 @@ def register(sub):
     add_quality(p)
     add_variant(p)
     add_cache(p)
-    p.add_argument("--out", default=None, help="write gt.exr, gt.json and PNG previews here, one folder per scene")
+    p.add_argument("--out", default=None, help="write gt.exr, gt.json (lights and camera in the camera frame, "
+                   "units, noise; read both with pbrbench.io.load_render) and PNG previews here, one folder per scene")
     p.add_argument("--force", action="store_true", help="re-render even if cached")
     p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
     p.set_defaults(func=run)
+
+
+RENDER_FORMAT = "pbrbench-render/1"
+
+
+def describe_render(spec, gt) -> dict:
+    """The JSON written beside a render's EXR: the ground truth's metadata (scene hash, quality,
+    samples, seed, versions, timings, Monte Carlo noise) plus the light set and lights
+    (direction toward the source in the camera frame, irradiance, positions), the camera
+    (type, frame, pixel size or field of view), the units and the channel list.  Read it back
+    with :func:`pbrbench.io.load_render`."""
+    from pbrbench.scene.geometry import UNITS, describe_camera, describe_lights
+
+    out = dict(gt.meta)
+    res = gt.meta.get("resolution")
+    if not res:
+        h, w = next(iter(gt.arrays.values())).shape[:2]
+        res = [w, h]
+    out.update(render_format=RENDER_FORMAT, camera=describe_camera(spec, res), units=dict(UNITS),
+               channels={k: list(v.shape) for k, v in sorted(gt.arrays.items())}, **describe_lights(spec))
+    out["quality_figures"] = {"quality": gt.meta.get("quality"), "spp": gt.meta.get("spp"),
+                              "resolution": res, "noise": gt.meta.get("noise", {})}
+    out["conventions"] = ("images (H, W[, C]) linear, row 0 at the top; normals unit vectors in the camera "
+                          "frame (x right, y up, z toward the camera); depth along the view axis; "
+                          "lightNN.* are the images under light_set[NN] alone; *_sd the per-pixel "
+                          "standard deviation of the image estimate")
+    return out
 
 
 def _safe(name: str) -> str:
@@ -58,7 +86,7 @@ def run(args) -> int:
             d = Path(args.out) / _safe(spec.name)
             d.mkdir(parents=True, exist_ok=True)
             shutil.copyfile(where / "gt.exr", d / "gt.exr")
-            (d / "gt.json").write_text(json.dumps(gt.meta, indent=1, sort_keys=True))
+            (d / "gt.json").write_text(json.dumps(describe_render(spec, gt), indent=1, sort_keys=True))
             if not args.no_previews:
                 write_previews(gt, d)
             where = d

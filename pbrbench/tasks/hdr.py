@@ -39,7 +39,7 @@ from pbrbench.checks import method_options
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
@@ -119,6 +119,48 @@ class HDRTask(Task):
         out += [Algorithm("baseline:ignore_response", self.name, ignore_response, kind="baseline"),
                 Algorithm("floor:true_response", self.name, true_response, kind="floor")]
         return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("images", "exposure_times")
+    predictions = (
+        Prediction("response", "levels,C", False, "inverse response f^-1(z) per pixel level z (rows) and channel "
+                   "(columns), any scale (divided by its last row); merged by the task like a built-in's"),
+        Prediction("exposure_times", "K", False, "re-estimated exposure times for the merge (with response)"),
+        Prediction("radiance", "H,W,3", False, "the merged linear radiance (scored without response_rmse); "
+                   "give response or radiance"),
+    )
+
+    def frame_shape(self, inputs: dict) -> tuple[int, int]:
+        return tuple(np.shape(inputs["images"])[1:3])
+
+    def prediction_output(self, files: dict, inputs: dict):
+        from pbrbench.infer.hdr import CameraResponse
+
+        if "response" not in files:
+            raise ValueError("prediction: write response (levels x channels) or radiance (H, W, 3)")
+        inv = np.asarray(files["response"], float)
+        inv = inv[:, None] if inv.ndim == 1 else inv
+        times = files.get("exposure_times")
+        return CameraResponse(inv / inv[-1:], inv.shape[0], "external",
+                              None if times is None else np.asarray(times, float).ravel())
+
+    def score_outputs(self, job: Job, gts: dict, files: dict, *, algorithm, seed: int = 0, quality=None):
+        if "radiance" not in files or "response" in files:
+            return None
+        gt = gts[job.scene]
+        rad = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
+        mask = np.all(rad > 0, axis=-1)
+        book = C.ScoreBook(job, C.scene_hash(gt), [algorithm])
+        res = JobResult(job)
+        try:
+            sc = hdr_scores(C.check_array(files["radiance"], "radiance", rad.shape, where=mask), rad, mask=mask)
+        except ValueError as e:
+            book.add(algorithm.name, {"failed": 1.0}, 0.0)
+            res.failures[algorithm.name] = C.one_line(e)
+        else:
+            book.add(algorithm.name, sc, 0.0)
+        res.scores = book.scores
+        return res
 
     def jobs(self, quality) -> list[Job]:
         out = []
