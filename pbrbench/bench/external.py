@@ -375,6 +375,10 @@ class EvaluatedTask:
         self.headline_metric = task.headline_metric
         self.families = task.families
 
+    def __getattr__(self, name):
+        # everything else (reference condition, notes, seed dependence ...) is the task's
+        return getattr(self.task, name)
+
     def builtin_algorithms(self):
         return self.task.builtin_algorithms()
 
@@ -470,7 +474,10 @@ def evaluate_export(task, export_dir, *, predictions_dir=None, name: str = "exte
     from pbrbench.render.quality import get_quality
 
     proxy.jobs(get_quality(manifest["quality"]))       # refuse a stale export before a run is created
+    # predictions are files made from the full ground truth: there are none for the half-sample
+    # replicates (no standard error), and files change between evaluations (no job cache)
     cfg = RunConfig(tasks=[task.name], quality=manifest["quality"], seed=int(manifest["seed"]), report=report,
+                    uncertainty=False, job_cache=False,
                     entry_points=False, algorithm_time_limit=None)
     outcome = run_benchmark(cfg, settings=replace(settings, baselines=None), tasks={task.name: proxy},
                             source=source, registry=reg, log=log)
