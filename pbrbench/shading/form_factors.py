@@ -41,7 +41,6 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_int, check_positive
-from pbrbench.shading.irradiance import _lambert_sum
 
 __all__ = [
     "patch_geometry",
@@ -199,6 +198,25 @@ def point_polygon_form_factors(points, normals, polygons, polygon_normals=None) 
     if part.any():
         out[part] = np.abs(_lambert_sum(_clip_to_halfspace(a[part], h[part] - _CLIP), n[part]))
     return out / (2.0 * np.pi)
+
+
+def _lambert_sum(a: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """``sum_i theta_i (n . gamma_i)`` for vertex vectors ``a`` (P, M, 3) seen from points with normals ``n`` (P, 3).
+
+    The sum of :func:`pbrbench.shading.irradiance.polygon_irradiance` (its ``_lambert_sum``),
+    written with scalar triple products for speed: ``n . gamma_i = n . (a_i x a_{i+1}) / |a_i x a_{i+1}|``
+    for unit ``a_i``; zero-length edges contribute nothing.
+    """
+    an = a / np.sqrt(np.einsum("pmk,pmk->pm", a, a))[..., None]
+    bn = np.roll(an, -1, axis=1)
+    ax, ay, az = an[..., 0], an[..., 1], an[..., 2]
+    bx, by, bz = bn[..., 0], bn[..., 1], bn[..., 2]
+    cx, cy, cz = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
+    s = np.sqrt(cx * cx + cy * cy + cz * cz)
+    theta = np.arctan2(s, ax * bx + ay * by + az * bz)
+    tn = cx * n[:, 0, None] + cy * n[:, 1, None] + cz * n[:, 2, None]
+    good = s > 1e-15
+    return np.sum(np.where(good, theta * tn / np.where(good, s, 1.0), 0.0), axis=1)
 
 
 def _clip_to_halfspace(a: np.ndarray, d: np.ndarray) -> np.ndarray:

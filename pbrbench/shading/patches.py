@@ -150,12 +150,17 @@ def make_patches(vertices, albedo=0.5, *, object_id=None, face_id=None, grid_ind
 
 # ---------------------------------------------------------------------------- the builder
 def rotation_matrix(axis, angle_deg: float) -> np.ndarray:
-    """Right-handed rotation by ``angle_deg`` degrees about ``axis`` (Rodrigues), as Mitsuba's ``rotate``."""
+    """Mitsuba's ``rotate(axis, angle)``: ``cos(t) I + (1 - cos(t)) a a^T + sin(t) [a]_x`` (t in degrees).
+
+    Right-handed about ``axis``.  Like Mitsuba (drjit's ``rotate``), the axis is *not*
+    normalised: a non-unit axis gives a non-rigid transform, reproduced here so that the patches
+    coincide with the rendered shapes.
+    """
     a = np.asarray(axis, float)
-    a = a / np.linalg.norm(a)
     t = math.radians(angle_deg)
+    c, s = math.cos(t), math.sin(t)
     K = np.array([[0, -a[2], a[1]], [a[2], 0, -a[0]], [-a[1], a[0], 0]])
-    return np.eye(3) + math.sin(t) * K + (1 - math.cos(t)) * (K @ K)
+    return c * np.eye(3) + (1 - c) * np.outer(a, a) + s * K
 
 
 def _rotations(rotate) -> np.ndarray:
@@ -230,6 +235,19 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
         material, an unsupported texture, or too many patches.
     """
     check_positive(patch_size, "patch_size")
+    max_patches = check_int(max_patches, "max_patches", 1)
+    count = 0
+    for shape in spec.shapes:  # refuse before building: meshes grow as 1 / patch_size^2
+        if shape.type == "rectangle":
+            count += _cells(shape.size[0], patch_size) * _cells(shape.size[1], patch_size)
+        elif shape.type == "box":
+            a, b, c = shape.size
+            count += 2 * sum(_cells(u, patch_size) * _cells(v, patch_size) for u, v in ((a, b), (b, c), (c, a)))
+        elif shape.type == "heightfield":
+            count += 2 * (heightfield_cells or _cells(2 * shape.half_width, patch_size)) ** 2
+    if count > max_patches:
+        raise ValueError(f"patch_size={patch_size}: gives {count} patches, more than max_patches={max_patches}; "
+                         "use a larger patch_size (or raise max_patches: memory grows as N^2)")
     if heightfield_cells is not None:
         heightfield_cells = check_int(heightfield_cells, "heightfield_cells", 1, 4096)
     verts, nvs, rhos, oids, fids, gis = [], [], [], [], [], []
@@ -304,12 +322,6 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
             occ_tris.append(full[:, [[0, 1, 2], [0, 2, 3]]].reshape(2, 3, 3))
             occ_groups.append(np.full(2, face))
             face += 1
-        if sum(len(v) for v in verts) > max_patches:
-            break
-    total = sum(len(v) for v in verts)
-    if total > max_patches:
-        raise ValueError(f"patch_size={patch_size}: gives more than max_patches={max_patches} patches; "
-                         "use a larger patch_size (or raise max_patches, memory grows as N^2)")
     from pbrbench.shading.irradiance import rectangle_polygon
 
     for light in list(spec.lights) + list(spec.light_set):

@@ -100,6 +100,10 @@ def _system(F, rho, E):
     E = as_float_array(E, "E")
     check_finite(rho, "rho")
     check_finite(E, "E")
+    if rho.ndim == 0:
+        rho = np.full(N, float(rho))
+    if E.ndim == 0:
+        E = np.full(N, float(E))
     for a, nm in ((rho, "rho"), (E, "E")):
         if a.ndim not in (1, 2) or a.shape[0] != N:
             raise ValueError(f"{nm}: expected shape ({N},) or ({N}, C) to match F, got {a.shape}")
@@ -125,9 +129,9 @@ def solve_radiosity(F, rho, E, *, method: str = "jacobi", max_bounces: int = 500
     ----------
     F : ndarray (N, N) or scipy sparse matrix
         Form factors (:func:`form_factor_matrix`); rows of a closed enclosure sum to 1.
-    rho : array_like (N,) or (N, C)
+    rho : float or array_like (N,) or (N, C)
         Albedos in [0, 1) per patch (and channel).
-    E : array_like (N,) or (N, C)
+    E : float or array_like (N,) or (N, C)
         Direct radiosity per patch (and channel).
     method : {'jacobi', 'gauss_seidel', 'direct'}
         ``jacobi``: ``B^(k+1) = E + rho F B^(k)``, ``B^(0) = E``; step ``k`` holds exactly the
