@@ -184,6 +184,10 @@ def form_factor_matrix(patches, emitters=None, *, quadrature="adaptive", visibil
     vis_order = check_int(vis_order, "vis_order", 1, 8)
     tiers = _tiers(quadrature)
     N, M = len(recv), len(ev)
+    # where visibility is sampled more finely than a tier's rule, integrate on the visibility points
+    lo_t = (-np.inf,) + tuple(t for t, _, _ in tiers[:-1])
+    tiers = tuple((t, 1, vis_order) if (visibility and lo < vis_near and ns * o < vis_order) else (t, ns, o)
+                  for (t, ns, o), lo in zip(tiers, lo_t, strict=True))
     rules = [patch_quadrature(recv.vertices, ns, o) for _, ns, o in tiers]
     maps = [_nearest_node((ns, o), (1, vis_order)) for _, ns, o in tiers]
     vpts, _ = patch_quadrature(recv.vertices, 1, vis_order)

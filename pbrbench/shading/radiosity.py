@@ -248,7 +248,7 @@ def _rays_to_far_points(ctx, pts, far, far_hull, shadows: bool) -> np.ndarray:
 
 
 def direct_radiosity(spec, patches: Patches, *, lights=None, order: int = 2, shadows: bool = True,
-                     ambient_rays: int = 8) -> np.ndarray:
+                     ambient_rays: int = 8, area_samples: int = 4) -> np.ndarray:
     """Direct radiosity ``E_i = rho_i * (mean irradiance over patch i)`` (N, 3) from the scene's lights.
 
     Irradiance at a point ``x`` with normal ``N`` (light vectors point from the surface toward the
@@ -257,8 +257,10 @@ def direct_radiosity(spec, patches: Patches, *, lights=None, order: int = 2, sha
     * directional (``direction`` S, ``irradiance`` E0): ``E0 max(0, N.S) Vis(x, x + D S)``;
     * point (``position`` P, ``intensity`` I): ``I max(0, N.(P-x)) / |P-x|^3 Vis(x, P)``;
     * area rectangle (radiance L, one-sided): ``pi L F(x -> light)`` with the exact polygon
-      factor and visibility sampled by shadow rays to points of the emitter
-      (:func:`form_factor_matrix` with the light as emitter);
+      factor and visibility sampled by shadow rays between ``area_samples`` x ``area_samples``
+      Gauss points of the patch and of the emitter, kernel-weighted
+      (:func:`form_factor_matrix` with the light as emitter); in a penumbra the visible fraction
+      is thus quantised to the light's sample points;
     * ambient (constant environment L): ``pi L (1 - blocked)``, ``blocked`` the cosine-weighted
       fraction of ``ambient_rays`` x ``ambient_rays`` stratified directions from the patch
       centroid that hit any surface.  Approximate: a deterministic quadrature of the visible
@@ -280,9 +282,12 @@ def direct_radiosity(spec, patches: Patches, *, lights=None, order: int = 2, sha
         Cast shadow rays (False: the unshadowed local model).
     ambient_rays : int
         Directions per side for the ambient term.
+    area_samples : int
+        Shadow-ray sample points per side on patches and area lights.
     """
     order = check_int(order, "order", 1, 8)
     ambient_rays = check_int(ambient_rays, "ambient_rays", 1, 64)
+    area_samples = check_int(area_samples, "area_samples", 1, 8)
     if lights is None and spec is None:
         raise ValueError("direct_radiosity: give a spec or a list of lights")
     lights = list(spec.lights) + list(spec.light_set) if lights is None else list(lights)
@@ -320,7 +325,8 @@ def direct_radiosity(spec, patches: Patches, *, lights=None, order: int = 2, sha
             from pbrbench.shading.irradiance import rectangle_polygon
 
             poly = rectangle_polygon(light.center, light.size, light.normal, light.up)
-            F = form_factor_matrix(patches, poly[None], visibility=shadows)[:, 0]
+            F = form_factor_matrix(patches, poly[None], visibility=shadows, vis_order=area_samples,
+                                   vis_near=np.inf)[:, 0]
             irr += np.pi * np.asarray(light.radiance)[None] * F[:, None]
         elif light.type == "ambient":
             dirs = _cosine_directions(ambient_rays)

@@ -113,6 +113,7 @@ def test_cap_visibility_finds_no_false_occlusion():
     np.testing.assert_array_equal(form_factor_matrix(p), form_factor_matrix(p, visibility=False))
 
 
+@pytest.mark.slow
 def test_cap_with_cast_shadows():
     """A source beyond the shadow-free limit: shadow rays in the direct term, still a uniform interreflection."""
     rho, a, S = 0.6, 60.0, toward(50.0)
@@ -147,6 +148,7 @@ def test_photometric_stereo_on_the_cap_recovers_the_biased_normals():
     assert np.all(Nh[m, 2] >= N[m, 2]) and np.all(alb[m] >= rho) and np.all(alb[~m] == 0)
 
 
+@pytest.mark.slow
 def test_the_rendered_heightfield_cap_converges_at_first_order():
     """The Mitsuba mesh of the cap drops the cells cut by the rim: its error is O(h) (half per halving)."""
     S = toward(15.0)
@@ -196,6 +198,7 @@ def test_groove_2d_profile_converges():
     assert d2 < 0.6 * d1 and d2 < 2e-3
 
 
+@pytest.mark.slow
 def test_groove_3d_long_faces_approach_the_2d_kernel():
     ref = groove_profile(0.7, (0, 1), n=16)
     errs = [np.abs(groove_profile(0.7, (0, 1), n=16, method="3d", length=L).B - ref.B).max() / ref.B.max()
