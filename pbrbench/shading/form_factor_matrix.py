@@ -10,7 +10,11 @@ and ``V_j(x)`` the kernel-weighted fraction of sample points ``y_s`` of ``P_j`` 
 (``K = cos cos' / r^2``; rays cast by :func:`pbrbench.shading.raycast.segments_blocked`).  This is
 the ray-cast visibility of Wallace, Elmquist and Haines (1989) on top of the exact unoccluded
 factor; without occluders between the patches ``V = 1`` and the only error is the outer
-quadrature.
+quadrature.  Pairs closer than ``vis_near`` (distance ratio below) are sampled with rays between
+``vis_order`` x ``vis_order`` Gauss points of both patches; farther pairs with the single ray
+between the centroids (binary, and reciprocal: ``V_ij = V_ji``).  Only pairs that some occluder
+may block cast rays at all (:mod:`pbrbench.shading.raycast` culls by bounding spheres and
+separating planes).
 
 The outer rule adapts to the separation: for the distance ratio
 ``t = |c_i - c_j| / max(D_i, D_j)`` (centroid distance over the larger patch diameter) the rule
