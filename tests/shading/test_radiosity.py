@@ -333,8 +333,9 @@ def test_public_functions_are_documented_with_references():
     import pbrbench.shading.gain_curve as gc
     import pbrbench.shading.groove_profile as gp
     import pbrbench.shading.radiosity as rad
+    import pbrbench.shading.radiosity_image as rim
 
-    for mod in (rad, ff, ffm, cap, gp, gc):
+    for mod in (rad, rim, ff, ffm, cap, gp, gc):
         assert "References" in mod.__doc__ or "Reference:" in mod.__doc__, mod.__name__
         for name in mod.__all__:
             obj = getattr(mod, name)
