@@ -1,6 +1,7 @@
 """Content-addressed render cache: one directory per ground truth, written atomically.
 
-Key: sha256 of (canonical scene spec hash, quality, variant, mitsuba version, ground-truth format).
+Key: sha256 of (canonical scene spec hash, the quality profile's render settings, variant, mitsuba
+version, ground-truth format).
 Entry: ``<root>/<key[:2]>/<key>/gt.exr`` (float32 multichannel, lossless) and ``gt.json``
 (metadata, with the EXR's size and sha256).  An entry is written into a temporary directory
 beside its final place and renamed into place in one step, so a render killed at any moment
@@ -46,7 +47,9 @@ def cache_key(spec: SceneSpec, quality: str, variant: str) -> str:
         mv = importlib.metadata.version("mitsuba")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover
         mv = "?"
-    blob = json.dumps({"scene": spec.content_hash(), "quality": quality, "variant": variant,
+    from pbrbench.render.quality import get_quality
+
+    blob = json.dumps({"scene": spec.content_hash(), "quality": get_quality(quality).render_key(), "variant": variant,
                        "mitsuba": mv, "format": GT_FORMAT}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 

@@ -193,6 +193,31 @@ def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
     return sorted(out, key=lambda f: (f["order"], f["name"]))
 
 
+TIME_SHARE = 0.15   # an algorithm above this share of the job time needs a reason in the report
+
+
+def algorithm_time(scores: list[dict], info: dict) -> list[dict]:
+    """Seconds per (task, algorithm) summed over jobs (one score per job and algorithm counts;
+    the time of the half-sample replicates is not in the scores), the share of the total, and,
+    above :data:`TIME_SHARE`, the reason the task gives (its ``cost_notes``)."""
+    per: dict[tuple[str, str], float] = defaultdict(float)
+    seen = set()
+    for s in scores:
+        k = (s["task"], s.get("job", ""), s["algorithm"])
+        if k in seen:
+            continue
+        seen.add(k)
+        per[(s["task"], s["algorithm"])] += float(s.get("seconds") or 0.0)
+    total = sum(per.values()) or 1.0
+    out = []
+    for (task, alg), sec in sorted(per.items(), key=lambda kv: -kv[1]):
+        share = sec / total
+        note = info.get(task, {}).get("cost_notes", {}).get(alg, "")
+        out.append({"task": task, "algorithm": alg, "seconds": sec, "share": share,
+                    "flag": share > TIME_SHARE, "note": note})
+    return out
+
+
 def _anchor(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-") or "x"
 
@@ -325,6 +350,7 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
                  ("configuration", json.dumps({k: v for k, v in run["config"].items() if k != "task_info"}, sort_keys=True)),
                  ("scores", str(len(scores)))]
     gallery = chapter_gallery(figures)
+    time_shares = algorithm_time(scores, info)
     failures = [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
                 for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())]
     return {
@@ -333,7 +359,7 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         "has_gallery": bool(gallery),
         "comparison": comparison, "baseline_quality": (comparison or {}).get("baseline_quality"),
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf, "failures": failures,
-        "n_scores": len(scores),
+        "n_scores": len(scores), "time_shares": time_shares,
     }
 
 

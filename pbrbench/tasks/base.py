@@ -125,6 +125,7 @@ class Task:
 
     reference_condition: str = "local"   # the headline's first column; effects are costs against it
     notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
+    cost_notes: dict = {}                # algorithm -> why it takes the time it takes (shown in the report)
 
     def seed_dependent(self, job: Job) -> bool:
         """Whether the job's inputs depend on the seed (then its standard error includes a second

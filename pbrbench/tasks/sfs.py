@@ -88,6 +88,13 @@ class SFSTask(Task):
     headline_metric = "normal_mean_deg"
     families = FAMILIES
     short_families = ("sfs_sphere", "sfs_vase")   # the vase stands on a plane: interreflection
+    cost_notes = {
+        "horn1989": "iterative: 100 coarse-to-fine sweeps per pyramid level (5x on the coarsest), each a "
+                    "vectorised pass over the image; the most accurate method with an oblique light",
+        "tsai_shah1994": "Newton steps of the causal system with a damped line search; it stalls after a few "
+                         "steps and the remaining time is spent in rejected trial steps (a stationary point "
+                         "of the linearisation, reported as not converged)",
+    }
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.sfs import LIGHT_METHODS, METHODS
