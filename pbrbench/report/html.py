@@ -392,3 +392,22 @@ def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None 
     index = out_dir / "index.html"
     _write(index, render_page("index.html", dict(ctx, page="index")))
     return index
+
+
+def write_compare(path: str | Path, runs: tuple[dict, dict], rows: list[dict], counts: dict) -> Path:
+    """A page of the differences between two runs (``rows`` of
+    :func:`pbrbench.cli.compare.differences`), grouped by task, changes first, with the noise
+    allowance of each comparison (2 combined standard errors)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    (path.parent / "style.css").write_text((TEMPLATE_DIR / "style.css").read_text(), encoding="utf-8")
+    order = {"worse": 0, "better": 1, "only-a": 2, "only-b": 3, "same": 4}
+    by_task = defaultdict(list)
+    for r in sorted(rows, key=lambda r: (order.get(r["direction"], 9), r["scene"], r["condition"], r["algorithm"], r["metric"])):
+        by_task[r["task"]].append(dict(r, a_text=fmt(r["a"]), b_text=fmt(r["b"]), d_text=fmt(r["delta"]),
+                                       n_text=fmt(2 * r["se"]) if math.isfinite(r["se"]) else "–"))
+    tasks = [{"name": t, "rows": rs, "counts": {d: sum(1 for r in rs if r["direction"] == d) for d in order}}
+             for t, rs in sorted(by_task.items())]
+    _write(path, render_page("compare.html", {"run": runs[1], "runs": runs, "tasks": tasks, "counts": counts,
+                                              "page": "compare", "nav_tasks": [], "has_gallery": False}))
+    return path
