@@ -115,7 +115,7 @@ def _starts(log: Path) -> list[tuple[int, int, str]]:
     if not log.is_file():
         return []
     out = []
-    for line in log.read_text().splitlines():
+    for line in log.read_text().split("\n")[:-1]:  # whole lines only (a job may be writing one)
         pid, ppid, key = line.split(" ", 2)
         out.append((int(pid), int(ppid), key))
     return out
@@ -168,9 +168,25 @@ def test_a_worker_killed_mid_run_loses_no_scores(tmp_path):
         killer = threading.Thread(target=kill_mid_job, daemon=True)
         killer.start()
         cfg = RunConfig(quality="draft", executor="dask", job_cache=False, report=False)
-        o_d = run_benchmark(cfg, settings=settings_for(tmp_path / "dask"),
-                            tasks={"fake": SlowTask(DELAY, str(starts))}, source=FakeSource(tmp_path / "gt-dask"),
-                            executor=ex, log=lambda m: None)
+        ran: dict = {}
+
+        def run():
+            try:
+                ran["outcome"] = run_benchmark(cfg, settings=settings_for(tmp_path / "dask"),
+                                               tasks={"fake": SlowTask(DELAY, str(starts))},
+                                               source=FakeSource(tmp_path / "gt-dask"), executor=ex, log=lambda m: None)
+            except BaseException as exc:  # noqa: BLE001 - re-raised below, in the test's thread
+                ran["error"] = exc
+
+        runner = threading.Thread(target=run, daemon=True)  # so that a hung cluster fails the test
+        runner.start()
+        runner.join(timeout=RUN_TIMEOUT)
+        if runner.is_alive():
+            pytest.fail(f"the run on the cluster did not finish within {RUN_TIMEOUT} s; worker starts: "
+                        f"{_starts(starts)}")
+        if "error" in ran:
+            raise ran["error"]
+        o_d = ran["outcome"]
         killer.join(timeout=10)
         wall = time.monotonic() - t0
         n_alive = len(ex.client.scheduler_info()["workers"])
