@@ -186,7 +186,10 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
                                          scenes=settings.scenes)
     variant = source.resolve_variant()
     info = task_info(tasks, registry)
-    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info)
+    from pbrbench.lock import locked_versions
+
+    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info,
+                  quality_profile=quality.render_key(), environment={"lock": locked_versions()})
     if cfg.resume:
         store.set_status(run_id, "running")
     else:

@@ -347,7 +347,9 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
                  ("pbrbench", run.get("pbrbench_version") or ""), ("mitsuba", run.get("mitsuba_version") or ""),
                  ("drjit", run.get("drjit_version") or ""), ("numpy", run.get("numpy_version") or ""),
                  ("machine", run.get("machine") or ""),
-                 ("configuration", json.dumps({k: v for k, v in run["config"].items() if k != "task_info"}, sort_keys=True)),
+                 ("configuration", json.dumps({k: v for k, v in run["config"].items() if k not in ("task_info", "environment")},
+                                              sort_keys=True)),
+                 ("dependency lock", _lock_text(run["config"].get("environment", {}).get("lock"))),
                  ("scores", str(len(scores)))]
     gallery = chapter_gallery(figures)
     time_shares = algorithm_time(scores, info)
@@ -361,6 +363,16 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf, "failures": failures,
         "n_scores": len(scores), "time_shares": time_shares,
     }
+
+
+def _lock_text(lock: dict | None) -> str:
+    if not lock:
+        return "not recorded"
+    mism = lock.get("mismatches") or []
+    return (f"{lock.get('lock_file', '')} sha256 {str(lock.get('lock_sha256') or '')[:12]}; "
+            f"{len(lock.get('packages') or {})} packages, "
+            + (f"{len(mism)} differ from the lock: " + ", ".join(f"{m['name']} {m['installed']} (lock {m['locked']})" for m in mism[:8])
+               if mism else "all as locked"))
 
 
 def _job_errors(errors: dict[str, str]) -> list[dict]:
