@@ -15,21 +15,24 @@ Between two facets (``d = x_J - x_I``) the Lambertian transport is
 .. math:: K_{IJ} = \frac{\max(0, n_I \cdot d)\,\max(0, -n_J \cdot d)}{\pi\,|d|^4}\, A_J,
     \qquad L_I = L^{\mathrm{local}}_I + \rho_I \sum_J K_{IJ} L_J,
 
-the radiance form of the radiosity equation ``B_I = E_I + rho_I sum_J F_IJ B_J`` with
-``B = pi L`` and the point form factor ``F_IJ = cos(theta_I) cos(theta_J) A_J / (pi r^2)``
-(Nayar, Ikeuchi & Kanade, "Shape from interreflections", IJCV 6(3), 1991, eqs. 2-6; Goral,
-Torrance, Greenberg & Battaile, "Modeling the interaction of light between diffuse surfaces",
-SIGGRAPH 1984).  The kernel is scale invariant (``A_J / |d|^2`` and the cosines do not change
-when the scene is scaled), so it needs no pixel size: pixel units are exact.
+the radiance form (``L = B / pi``) of the radiosity equation ``B_I = E_I + rho_I sum_J F_IJ B_J``
+with the point form factor ``F_IJ = cos(theta_I) cos(theta_J) A_J / (pi r^2)`` (Goral, Torrance,
+Greenberg & Battaile, "Modeling the interaction of light between diffuse surfaces", SIGGRAPH
+1984; Nayar, Ikeuchi & Kanade, "Shape from interreflections", IJCV 6(3), 1991).  The kernel is
+scale invariant (``A_J / |d|^2`` and the cosines do not change when the scene is scaled), so it
+needs no pixel size: pixel units are exact.
 
 Visibility: two facets exchange light when each lies in front of the other (the two cosine
 tests); occlusion by a third part of the surface is ignored.  That is exact for a concave
 surface (the segment between two of its points lies above it) and for a convex one (no facet
-lies in front of another, the kernel vanishes), an approximation in between.
+lies in front of another: the kernel vanishes), an approximation in between.
 
-Outside the image: where the mask touches an image border the surface is continued beyond it
-by its mirror image (the images and heights reflected about the border: the even, Neumann
-continuation), ``pad`` times the facet grid's size deep; elsewhere the mask's outside is empty.
+Outside the image: where the mask touches an image border and the surface crosses it unchanged
+(the ``CONT_STRIP`` facets next to the border, along the outward direction, have normals within
+``INVARIANCE_DEG`` of the border facet's and its slope across the border is below that angle: a
+groove or cylinder whose axis crosses the border, a level plane) the border facets are
+continued by translation, ``pad`` times the facet grid deep; elsewhere the surface ends at the
+border and at the mask's edge (nothing outside reflects light).
 
 The interreflected term of a facet is brought back to the pixels by bilinear interpolation
 between the four nearest facet centres, each weight multiplied by ``max(0, N_p . n_J)^16`` so
@@ -47,6 +50,8 @@ from scipy import sparse
 
 MIN_NZ = 0.05        # pixels steeper than ~87 deg count as this steep (area 1 / N_z capped at 20)
 SIMILARITY_POWER = 16  # exponent of the normal-similarity weight of the upsampling
+CONT_STRIP = 4         # facets next to a border that must be translation invariant for it to continue
+INVARIANCE_DEG = 2.0   # tolerance of that invariance (normal change and slope across the border)
 _CHUNK_PAIRS = 65_536  # receiver x source pairs per block of the kernel (temporaries of 512 kB)
 
 
@@ -55,11 +60,12 @@ class Facets:
     """Facets of a height field and the sparse maps between them and the pixels.
 
     ``pos`` (n, 3), ``normal`` (n, 3), ``area`` (n,): the kept facets (in pixel units);
-    ``src_pos``, ``src_normal``, ``src_area`` (n_s, 3/3/1) the sources: the kept facets followed
-    by their mirror copies beyond the image borders; ``src_of`` (n_s,) the kept facet whose
-    radiance each source carries; ``average`` (n, n_pix) sparse: the block mean over the used
-    pixels; ``spread`` (n_pix, n) sparse: the upsampling to the used pixels; ``pix`` (n_pix,) flat
-    indices of the used pixels.
+    ``src_pos``, ``src_normal``, ``src_area`` (n_s, 3/3/1): the sources, the kept facets followed
+    by their continuation beyond the image borders; ``src_of`` (n_s,): the kept facet whose
+    radiance each source carries (a continued facet carries its border facet's); ``average``
+    (n, n_pix) sparse: the block mean over the used pixels; ``spread`` (n_pix, n) sparse: the
+    upsampling to the used pixels; ``pix`` (n_pix,): flat indices of the used pixels; ``grid``:
+    the facet grid's shape.
     """
 
     pos: np.ndarray
@@ -90,7 +96,8 @@ def build_facets(normals, used, block: int, pad: float) -> Facets:
     """Facets of the surface whose unit normals on the pixels ``used`` are ``normals``.
 
     ``normals`` (H, W, 3), ``used`` (H, W) bool, ``block`` pixels per facet side, ``pad`` the
-    depth of the mirror continuation beyond a touched image border as a fraction of the grid.
+    depth of the continuation beyond an image border as a fraction of the facet grid (module
+    docstring).
     """
     from pbrbench.infer.integration import integrate_lsq
 
@@ -122,33 +129,32 @@ def build_facets(normals, used, block: int, pad: float) -> Facets:
     ids[keep] = np.arange(int(keep.sum()))
     kpos, knrm, karea = pos[keep], nrm[keep], area[keep]
 
-    # mirror continuation beyond the touched image borders
-    depth_r = min(hb, int(round(pad * hb))) if pad > 0 else 0
-    depth_c = min(wb, int(round(pad * wb))) if pad > 0 else 0
-    pt = depth_r if ok[0].any() else 0
-    pb = depth_r if ok[-1].any() else 0
-    pl = depth_c if ok[:, 0].any() else 0
-    pr = depth_c if ok[:, -1].any() else 0
+    # continuation by translation across the image borders the surface crosses unchanged
     src = [(np.arange(kpos.shape[0]), kpos, knrm)]
-    if pt or pb or pl or pr:
-        r_all = np.arange(-pt, hb + pb)
-        c_all = np.arange(-pl, wb + pr)
-        rr, cc = np.meshgrid(r_all, c_all, indexing="ij")
-        outside = (rr < 0) | (rr >= hb) | (cc < 0) | (cc >= wb)
-        rr, cc = rr[outside], cc[outside]
-        sr = np.where(rr < 0, -rr - 1, np.where(rr >= hb, 2 * hb - 1 - rr, rr))
-        sc = np.where(cc < 0, -cc - 1, np.where(cc >= wb, 2 * wb - 1 - cc, cc))
-        sid = ids[sr, sc]
-        good = sid >= 0
-        rr, cc, sid = rr[good], cc[good], sid[good]
+    tan_tol = np.tan(np.radians(INVARIANCE_DEG))
+    cos_tol = np.cos(np.radians(INVARIANCE_DEG))
+    for touches, lines, slope_out, step in (
+            (ok[0].any(), ids[:CONT_STRIP], fy, (0.0, 1.0)),              # top: outward +y
+            (ok[-1].any(), ids[::-1][:CONT_STRIP], fy, (0.0, -1.0)),      # bottom: -y
+            (ok[:, 0].any(), ids[:, :CONT_STRIP].T, fx, (-1.0, 0.0)),     # left: -x
+            (ok[:, -1].any(), ids[:, ::-1][:, :CONT_STRIP].T, fx, (1.0, 0.0))):  # right: +x
+        depth = int(round(pad * (hb if step[0] == 0.0 else wb)))
+        if not touches or depth <= 0:
+            continue
+        full = (lines >= 0).all(axis=0)                  # (n_lines,) the strip is all surface
+        border = np.where(full, lines[0], 0)
+        strip = np.where(full[None, :], lines, 0)
+        same = np.einsum("slk,lk->sl", knrm[strip], knrm[border]).min(axis=0) >= cos_tol
+        flat_out = np.abs(slope_out.ravel()[np.flatnonzero(keep.ravel())][border]) <= tan_tol
+        go = np.flatnonzero(full & same & flat_out)
+        if go.size == 0:
+            continue
+        sid = np.repeat(lines[0, go], depth)
+        t = np.tile(np.arange(1, depth + 1, dtype=float) * b, go.size)
         p = kpos[sid].copy()
-        q = knrm[sid].copy()
-        flip_x, flip_y = (cc < 0) | (cc >= wb), (rr < 0) | (rr >= hb)
-        p[:, 0] = np.where(cc < 0, -p[:, 0], np.where(cc >= wb, 2.0 * w - p[:, 0], p[:, 0]))
-        p[:, 1] = np.where(rr < 0, -p[:, 1], np.where(rr >= hb, -2.0 * h - p[:, 1], p[:, 1]))
-        q[flip_x, 0] *= -1.0
-        q[flip_y, 1] *= -1.0
-        src.append((sid, p, q))
+        p[:, 0] += step[0] * t
+        p[:, 1] += step[1] * t
+        src.append((sid, p, knrm[sid]))
     src_of = np.concatenate([s[0] for s in src])
     src_pos = np.concatenate([s[1] for s in src])
     src_nrm = np.concatenate([s[2] for s in src])
@@ -219,7 +225,7 @@ def kernel(f: Facets) -> np.ndarray:
         ci /= r2
         ci *= w
         out[sl] = ci
-    # a facet does not light itself (its mirror copies may)
+    # a facet does not light itself (its continued copies may light it)
     own = np.arange(n)
     out[own, own] = 0.0
     return out
@@ -239,15 +245,17 @@ def transport(f: Facets, k: np.ndarray, values: np.ndarray) -> np.ndarray:
     return f.spread @ g
 
 
-def interreflect(direct, normals, rho, mask, *, block: int = 4, pad: float = 0.5):
+def interreflect(direct, normals, rho, mask, *, block: int, pad: float):
     r"""Images with interreflection from local (direct) images, by the facet model.
 
     Solves ``L = D + rho * spread(K S average(L))`` exactly (a dense solve on the facets):
-    with ``T = average diag(rho) spread K S`` (n x n), ``(I - T) L_f = average D`` and then
-    ``L = D + rho spread K S L_f``; the model :func:`pbrbench.infer.photometric_stereo.nayar1991`
-    inverts.  ``direct`` (K, H, W) or (K, H, W, C); ``normals`` (H, W, 3) unit; ``rho`` (H, W) or
-    (H, W, C) reflectances in [0, 1); ``mask`` (H, W).  Returns an array shaped like ``direct``;
-    pixels outside the mask keep their values.
+    with ``T = average diag(rho) spread K S`` (n x n), ``(1 - T) L_f = average D`` and then
+    ``L = D + rho spread K S L_f``; the model that
+    :func:`pbrbench.infer.photometric_stereo.photometric_stereo_nayar1991` inverts (with the same
+    ``block`` and ``pad``).  ``direct`` (K, H, W) or (K, H, W, C); ``normals`` (H, W, 3) unit;
+    ``rho`` (H, W) or (H, W, C) reflectances in [0, 1); ``mask`` (H, W).  Returns an array shaped
+    like ``direct``; pixels outside the mask keep their values.  A test fixture and a reference,
+    dense in the facets (``n^2`` memory, ``n^3`` time).
     """
     d = np.asarray(direct, float)
     colour = d.ndim == 4

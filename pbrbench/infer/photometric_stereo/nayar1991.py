@@ -23,7 +23,9 @@ from pbrbench.infer.photometric_stereo._common import (
 __all__ = ["InterreflectionResult", "photometric_stereo_nayar1991"]
 
 MIN_FACETS = 4
-IR_FRACTION = 0.01   # pixels whose removed interreflection exceeds this fraction of their light use ir_shadow_threshold
+FACETS_PER_SIDE = 32   # default facet grid along the larger image side
+IR_FRACTION = 0.01     # pixels with more removed interreflection than this share of their light
+#                        use ir_shadow_threshold
 
 
 @dataclass(frozen=True)
@@ -47,11 +49,14 @@ class InterreflectionResult(PhotometricStereoResult):
 
 
 def _mean_change(n0, n1, m) -> float:
-    c = np.clip(np.einsum("ijk,ijk->ij", n0, n1)[m], -1.0, 1.0)
-    return float(np.degrees(np.arccos(c)).mean()) if c.size else 0.0
+    """Mean angle (degrees) between two normal fields on ``m``, by atan2 (exact near 0)."""
+    a, b = n0[m], n1[m]
+    if not a.size:
+        return 0.0
+    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(a, b), axis=-1), np.einsum("ij,ij->i", a, b))).mean())
 
 
-def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int = 4, pad: float = 0.5,
+def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int | None = None, pad: float = 0.5,
                                  max_iter: int = 10, tol: float = 0.05, history: int = 3,
                                  ir_shadow_threshold: float = 0.2, albedo_scale: float = np.pi,
                                  max_reflectance: float = 0.99, shadow_threshold: float = 0.01,
@@ -70,31 +75,46 @@ def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int = 4, p
 
     the form factor ``cos(theta_i) cos(theta_j) A_j / (pi r^2)`` of facet ``j`` (area ``A_j``)
     seen from facet ``i`` (:mod:`pbrbench.infer.photometric_stereo._interreflection`).  Local
-    photometric stereo (:func:`~pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`)
-    on ``I`` gives the pseudo shape and pseudo albedo; then, until the normals stop changing,
+    photometric stereo (Woodham's least squares, as
+    :func:`~pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`) on ``I`` gives the
+    pseudo shape and pseudo albedo; then, until the normals stop changing,
 
     .. math:: I_{\mathrm{local}}^{(t)} = I - P^{(t)} K^{(t)} I, \qquad
         (N, \rho)^{(t+1)} = \mathrm{PS}\big(I_{\mathrm{local}}^{(t)}\big),
 
     with ``K^(t)`` built from the normals ``N^(t)`` integrated to heights
-    (:func:`pbrbench.infer.integration.integrate_lsq`) and ``P^(t) = albedo_scale * albedo^(t)``
-    (Nayar, Ikeuchi & Kanade 1991, section 5: the iteration converges on concave surfaces).
-    ``I`` enters only multiplied: no inverse of ``1 - P K`` is formed.
+    (:func:`pbrbench.infer.integration.integrate_lsq`) and ``P^(t) = albedo_scale * albedo^(t)``:
+    the iteration of Nayar, Ikeuchi & Kanade (1991).  ``I`` enters only multiplied; no inverse of
+    ``1 - P K`` is formed.  The fixed-point map ``R -> P K I`` (``R`` the removed interreflection)
+    is accelerated by Anderson mixing of the last ``history`` steps (Anderson, "Iterative
+    procedures for nonlinear integral equations", J. ACM 12(4), 1965), which needs about half
+    the corrections of the plain iteration (``history=0``) for the same fixed point.
 
-    Discretisation: the kernel lives on ``block`` x ``block`` pixel facets (a 128 x 128 image
-    and ``block=4``: 32 x 32 = 1024 facets); ``K I`` is computed from the facets' mean
-    radiances and brought back to every pixel by bilinear interpolation between facet centres
-    weighted by normal similarity (no mixing across a crease), then multiplied by the pixel's own
-    reflectance.  The geometry is in pixel units: the kernel is invariant to the scale of the
-    scene, so no pixel size is needed.
+    Shadows: a measurement is used when its corrected value exceeds ``shadow_threshold`` times
+    the pixel's brightest corrected one (Woodham's rule), and, on pixels where the removed
+    interreflection exceeds 1 % of their light, ``ir_shadow_threshold`` times it: a shadowed
+    measurement of a concave surface is pure interreflection, and what the correction leaves of
+    it (its error) would otherwise pass as a dim lit measurement and bias the normal.  Where
+    that leaves fewer than ``min_lights`` lights Woodham's rule alone decides.  Where nothing is
+    removed (a convex surface: the kernel vanishes) the result is Woodham's, bit for bit.
+
+    Discretisation: the kernel lives on ``block`` x ``block`` pixel facets (default: about 32
+    facets along the larger image side; a 128 x 128 image: ``block=4``, 32 x 32 = 1024 facets);
+    ``K I`` is computed from the facets' mean radiances and brought back to every pixel by
+    bilinear interpolation between facet centres weighted by normal similarity (no mixing across
+    a crease), then multiplied by the pixel's own reflectance.  The geometry is in pixel units:
+    the kernel is invariant to the scale of the scene, so no pixel size is needed.
 
     Assumptions (beyond the local model's Lambertian surface, orthographic camera and distant
-    sources): facets see each other when each lies in front of the other, with no occlusion by
-    a third part (exact on concave and on convex surfaces); pixels outside ``mask`` are empty
-    space (nothing there reflects light), except that where the mask touches an image border
-    the surface continues beyond it as its mirror image, ``pad`` times the image size deep
-    (``pad=0`` ends the surface at the border); separate parts of the mask are integrated
-    independently, each with mean height zero.
+    sources): the images hold all the interreflected light (on images without it, e.g. direct
+    renders of a concave surface, the method removes light that is not there and is worse than
+    the local solve); facets see each other when each lies in front of the other, with no
+    occlusion by a third part (exact on concave and on convex surfaces); pixels outside ``mask``
+    are empty space; where the mask touches an image border and the surface crosses it
+    unchanged (a groove or a cylinder whose axis crosses the border, a level plane) it continues
+    beyond the border by translation, ``pad`` times the image size deep, and elsewhere ends at
+    the border; separate parts of the mask are integrated independently, each with mean height
+    zero.
 
     Parameters
     ----------
@@ -107,40 +127,46 @@ def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int = 4, p
         (x right, y up, z toward the camera).
     mask : (H, W) bool, optional
         Pixels of the surface (default all).
-    block : int
-        Facet side in pixels (>= 1).  Time and memory grow as ``(H W / block^2)^2``.
+    block : int, optional
+        Facet side in pixels (>= 1); default ``max(1, round(max(H, W) / 32))``.  Time and memory
+        grow as ``(H W / block^2)^2``.
     pad : float
-        Depth of the mirror continuation beyond the image borders the mask touches, as a
-        fraction of the image size (in [0, 1]).
+        Depth of the continuation beyond an image border, as a fraction of the image size (in
+        [0, 1]; 0: the surface ends at the border).
     max_iter : int
         Maximum number of corrections (>= 0; 0 returns the local solve).
     tol : float
         Stop when the mean angular change of the normals in one correction falls below ``tol``
         degrees (> 0).
+    history : int
+        Steps of Anderson mixing (>= 0; 0: Nayar et al.'s plain iteration).
+    ir_shadow_threshold : float
+        Shadow threshold, relative to the pixel's brightest corrected measurement, on pixels
+        with interreflection removed (in [0, 1)).
     albedo_scale : float
         Reflectance per unit of recovered albedo: ``pi`` for radiance images and source vectors
         in irradiance (pbrbench's convention), 1 when the images are already ``rho E cos``.
     max_reflectance : float
         The reflectance in ``P`` is clipped to ``[0, max_reflectance]`` (in (0, 1]): an early
-        pseudo albedo can exceed the physical bound 1 and would overcorrect.  The returned
-        albedo is the local solve's, not clipped.
+        pseudo albedo can reach or exceed the physical bound 1 and would overcorrect.  The
+        returned albedo is the local solve's, not clipped.
     shadow_threshold, saturation, min_lights
-        Options of the local solve (:func:`photometric_stereo_woodham1980`); the correction
-        makes shadowed measurements close to 0, where the threshold drops them.
+        As in :func:`~pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`
+        (applied to the corrected images; ``saturation`` to the measured ones).
 
     Returns
     -------
     InterreflectionResult
         ``normals``, ``albedo`` (``rho / albedo_scale``), ``residual``, ``n_used``, ``valid``
-        of the local solve on the corrected images, and ``interreflection``, ``iterations``,
-        ``changes``, ``n_facets``.
+        of the local solve on the corrected images, and ``interreflection`` (the removed light),
+        ``iterations``, ``changes``, ``n_facets``.
 
     Raises
     ------
     ValueError
         On the local solve's errors (bad shapes, fewer than 3 lights, coplanar lights,
         non-finite values inside the mask), bad options, or a surface covering fewer than 4
-        facets (use a smaller ``block``).
+        facets (pass a smaller ``block``).
 
     References
     ----------
@@ -148,18 +174,23 @@ def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int = 4, p
     of Computer Vision 6(3):173-195, 1991.
     R. J. Woodham, "Photometric method for determining surface orientation from multiple
     images", Optical Engineering 19(1), 1980.
+    D. G. Anderson, "Iterative procedures for nonlinear integral equations", Journal of the ACM
+    12(4):547-560, 1965.
     """
-    block = check_int(block, "block", lo=1)
+    if block is not None:
+        block = check_int(block, "block", lo=1)
     pad = check_number(pad, "pad", lo=0.0, hi=1.0)
     max_iter = check_int(max_iter, "max_iter", lo=0)
     tol = check_number(tol, "tol", lo=0.0, lo_open=True)
-    ir_shadow_threshold = check_number(ir_shadow_threshold, "ir_shadow_threshold", lo=0.0, hi=1.0, hi_open=True)
     history = check_int(history, "history", lo=0)
+    ir_shadow_threshold = check_number(ir_shadow_threshold, "ir_shadow_threshold", lo=0.0, hi=1.0, hi_open=True)
     albedo_scale = check_number(albedo_scale, "albedo_scale", lo=0.0, lo_open=True)
     max_reflectance = check_number(max_reflectance, "max_reflectance", lo=0.0, hi=1.0, lo_open=True)
     p = prepare(images, lights, mask, None, shadow_threshold, saturation, min_lights)
     check_finite(p.img, "images", where=np.broadcast_to(p.m[None, :, :, None], p.img.shape))
     kk, h, w, nc = p.img.shape
+    if block is None:
+        block = max(1, int(round(max(h, w) / FACETS_PER_SIDE)))
     sel = np.arange(h * w) if p.sel is None else p.sel
     meas = p.flat[:, sel, :]                                   # (K, N, C) measured, masked pixels
     sat = None if p.sat is None else np.any(meas >= p.sat, axis=-1)
@@ -170,9 +201,14 @@ def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int = 4, p
         js = cor.sum(axis=-1)
         strong = removed.sum(axis=(0, 2)) > IR_FRACTION * meas.sum(axis=(0, 2))
         thr = np.where(strong, max(p.thr, ir_shadow_threshold), p.thr)
-        used = js > thr * js.max(axis=0)
+        peak = js.max(axis=0)
+        used = js > thr * peak
+        base = js > p.thr * peak
         if sat is not None:
             used &= ~sat
+            base &= ~sat
+        few = used.sum(axis=0) < p.min_lights
+        used[:, few] = base[:, few]
         flat = np.zeros_like(p.flat)
         flat[:, sel, :] = cor
         q = replace(p, img=flat.reshape(p.img.shape), flat=flat)
