@@ -28,11 +28,11 @@ surface (the segment between two of its points lies above it) and for a convex o
 lies in front of another: the kernel vanishes), an approximation in between.
 
 Outside the image: where the mask touches an image border and the surface crosses it unchanged
-(the ``CONT_STRIP`` facets next to the border, along the outward direction, have normals within
-``INVARIANCE_DEG`` of the border facet's and its slope across the border is below that angle: a
-groove or cylinder whose axis crosses the border, a level plane) the border facets are
-continued by translation, ``pad`` times the facet grid deep; elsewhere the surface ends at the
-border and at the mask's edge (nothing outside reflects light).
+(in the strip of ``CONT_PIXELS`` next to the border, the mean normals of its outer and inner
+halves agree within ``INVARIANCE_DEG`` and the outer half's slope across the border is below
+that angle: a groove or cylinder whose axis crosses the border, a level plane) the border facets
+are continued by translation, ``pad`` times the facet grid deep; elsewhere the surface ends at
+the border and at the mask's edge (nothing outside reflects light).
 
 The interreflected term of a facet is brought back to the pixels by bilinear interpolation
 between the four nearest facet centres, each weight multiplied by ``max(0, N_p . n_J)^16`` so
@@ -50,7 +50,7 @@ from scipy import sparse
 
 MIN_NZ = 0.05        # pixels steeper than ~87 deg count as this steep (area 1 / N_z capped at 20)
 SIMILARITY_POWER = 16  # exponent of the normal-similarity weight of the upsampling
-CONT_STRIP = 4         # facets next to a border that must be translation invariant for it to continue
+CONT_PIXELS = 16       # depth (pixels) of the strip next to a border that must be invariant for it to continue
 INVARIANCE_DEG = 2.0   # tolerance of that invariance (normal change and slope across the border)
 _CHUNK_PAIRS = 65_536  # receiver x source pairs per block of the kernel (temporaries of 512 kB)
 
@@ -133,20 +133,25 @@ def build_facets(normals, used, block: int, pad: float) -> Facets:
     src = [(np.arange(kpos.shape[0]), kpos, knrm)]
     tan_tol = np.tan(np.radians(INVARIANCE_DEG))
     cos_tol = np.cos(np.radians(INVARIANCE_DEG))
-    for touches, lines, slope_out, step in (
-            (ok[0].any(), ids[:CONT_STRIP], fy, (0.0, 1.0)),              # top: outward +y
-            (ok[-1].any(), ids[::-1][:CONT_STRIP], fy, (0.0, -1.0)),      # bottom: -y
-            (ok[:, 0].any(), ids[:, :CONT_STRIP].T, fx, (-1.0, 0.0)),     # left: -x
-            (ok[:, -1].any(), ids[:, ::-1][:, :CONT_STRIP].T, fx, (1.0, 0.0))):  # right: +x
+    depth_s = max(2, -(-CONT_PIXELS // b))
+    for touches, lines, step in (
+            (ok[0].any(), ids[:depth_s], (0.0, 1.0)),                 # top: outward +y
+            (ok[-1].any(), ids[::-1][:depth_s], (0.0, -1.0)),         # bottom: -y
+            (ok[:, 0].any(), ids[:, :depth_s].T, (-1.0, 0.0)),        # left: -x
+            (ok[:, -1].any(), ids[:, ::-1][:, :depth_s].T, (1.0, 0.0))):  # right: +x
         depth = int(round(pad * (hb if step[0] == 0.0 else wb)))
-        if not touches or depth <= 0:
+        if not touches or depth <= 0 or lines.shape[0] < depth_s:
             continue
         full = (lines >= 0).all(axis=0)                  # (n_lines,) the strip is all surface
-        border = np.where(full, lines[0], 0)
         strip = np.where(full[None, :], lines, 0)
-        same = np.einsum("slk,lk->sl", knrm[strip], knrm[border]).min(axis=0) >= cos_tol
-        flat_out = np.abs(slope_out.ravel()[np.flatnonzero(keep.ravel())][border]) <= tan_tol
-        go = np.flatnonzero(full & same & flat_out)
+        half = depth_s // 2
+        outer = knrm[strip[:half]].sum(axis=0)           # mean normals of the strip's two halves
+        inner = knrm[strip[half:]].sum(axis=0)
+        outer /= np.linalg.norm(outer, axis=-1, keepdims=True)
+        inner /= np.linalg.norm(inner, axis=-1, keepdims=True)
+        same = np.einsum("lk,lk->l", outer, inner) >= cos_tol
+        slope = np.abs(outer[:, 0] * step[0] + outer[:, 1] * step[1]) / np.maximum(outer[:, 2], 1e-12)
+        go = np.flatnonzero(full & same & (slope <= tan_tol))
         if go.size == 0:
             continue
         sid = np.repeat(lines[0, go], depth)
