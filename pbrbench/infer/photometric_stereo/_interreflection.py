@@ -150,8 +150,8 @@ def build_facets(normals, used, block: int, pad: float) -> Facets:
         outer /= np.linalg.norm(outer, axis=-1, keepdims=True)
         inner /= np.linalg.norm(inner, axis=-1, keepdims=True)
         same = np.einsum("lk,lk->l", outer, inner) >= cos_tol
-        slope = np.abs(outer[:, 0] * step[0] + outer[:, 1] * step[1]) / np.maximum(outer[:, 2], 1e-12)
-        go = np.flatnonzero(full & same & (slope <= tan_tol))
+        across = np.abs(outer[:, 0] * step[0] + outer[:, 1] * step[1]) / np.maximum(outer[:, 2], 1e-12)
+        go = np.flatnonzero(full & same & (across <= tan_tol))   # |slope across the border|
         if go.size == 0:
             continue
         sid = np.repeat(lines[0, go], depth)

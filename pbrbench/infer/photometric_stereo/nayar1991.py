@@ -39,7 +39,8 @@ class InterreflectionResult(PhotometricStereoResult):
         the used pixels.
     iterations : number of corrections applied (0: the local solve alone).
     changes : mean angular change of the normals (degrees) after each correction.
-    n_facets : number of facets on the surface (the mirror copies beyond the borders not counted).
+    n_facets : number of facets on the surface in the last correction (its continuation beyond the
+        image borders not counted; 0 when no correction ran).
     """
 
     interreflection: np.ndarray
