@@ -20,7 +20,10 @@ import shutil
 import tempfile
 from pathlib import Path
 
-from pbrbench.io import read_exr, write_exr
+import numpy as np
+
+from pbrbench.errors import UserError, disk_error
+from pbrbench.io import read_exr, write_exr, write_text
 from pbrbench.render.groundtruth import GT_FORMAT, GroundTruth, render_ground_truth
 from pbrbench.render.variant import choose_variant, current_choice
 from pbrbench.scene.spec import SceneSpec
@@ -88,19 +91,32 @@ class RenderCache:
         return GroundTruth(arrays, meta)
 
     def put(self, key: str, gt: GroundTruth) -> Path:
+        """Store ``gt`` under ``key``: written into a temporary directory, read back and compared,
+        then renamed into place.  A disk fault (full, read-only, no permission) raises a one-line
+        :class:`~pbrbench.errors.DiskError` and leaves no entry."""
         final = self.entry_dir(key)
-        final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:12]}-", dir=final.parent))
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:12]}-", dir=final.parent))
+        except OSError as exc:
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE") from None
         try:
             exr = tmp / "gt.exr"
             write_exr(exr, gt.arrays)
+            back = read_exr(exr)  # what a later reader will see must be what was rendered
+            if set(back) != set(gt.arrays) or any(back[k].tobytes() != np.asarray(gt.arrays[k], np.float32).tobytes()
+                                                   for k in back):
+                raise OSError(f"{exr}: the written EXR does not read back identically")
             meta = dict(gt.meta, cache_key=key, exr_size=exr.stat().st_size, exr_sha256=_sha256(exr))
-            (tmp / "gt.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
+            write_text(tmp / "gt.json", json.dumps(meta, indent=1, sort_keys=True))
             try:
                 os.rename(tmp, final)
             except OSError:
                 # another process finished the same entry first: keep theirs
                 shutil.rmtree(tmp, ignore_errors=True)
+        except OSError as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE") from None
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
@@ -121,6 +137,27 @@ class RenderCache:
         return n
 
 
+def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
+    """The last line of defence against a useless render: refuse (UserError naming the scene) a
+    ground truth whose radiance is non-finite anywhere, whose camera sees no geometry, or whose
+    radiance is zero everywhere although the camera sees geometry.  Such a render is never cached."""
+    where = f"scene {spec.name!r}" + (f" ({spec.source})" if spec.source else "")
+    for name in ("radiance", "direct"):
+        if name in gt:
+            bad = int((~np.isfinite(gt[name])).sum())
+            if bad:
+                raise UserError(f"{where}: the rendered {name} has {bad} non-finite value(s) (NaN or inf); the scene's "
+                                "numbers are out of the renderer's range (check sizes, positions and powers); not cached")
+    if "coverage" in gt and not (gt["coverage"] > 0).any():
+        raise UserError(f"{where}: the camera sees no geometry (coverage is 0 in every pixel): check camera.origin / "
+                        "target / half_width and that the shapes lie between near_clip and far_clip; not cached")
+    rad = gt["radiance"]
+    if not (rad > 0).any():
+        raise UserError(f"{where}: the rendered radiance is zero in every pixel although the camera sees geometry: "
+                        "no light reaches the visible surfaces (light directions point from the scene toward the "
+                        "source; check the lights' positions and directions and the albedos); not cached")
+
+
 def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCache | None = None,
                  variant: str | None = None, force: bool = False, progress=None) -> tuple[GroundTruth, bool]:
     """The ground truth of ``spec`` from the cache, rendering it if missing.
@@ -136,6 +173,7 @@ def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCac
         if gt is not None:
             return gt, True
     gt = render_ground_truth(spec, quality, variant=var, progress=progress)
+    check_ground_truth(spec, gt)
     gt.meta["cache_key"] = key
     cache.put(key, gt)
     return gt, False
