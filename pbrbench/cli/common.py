@@ -44,11 +44,15 @@ def settings(args):
 
 
 def open_store(s):
-    """The results database of settings ``s``; a one-line error when there is none yet."""
+    """The results database of settings ``s`` for reading: opened for writing when it can be
+    (a migration may be due), else read-only (an archived or read-only database still reads);
+    a one-line error when there is none yet or it is not a results database."""
     from pbrbench.bench.store import Store
     from pbrbench.errors import UserError
 
     p = Path(s.store_path())
+    if p.is_dir():
+        raise UserError(f"--store {p}: is a directory; give the path of a results database file")
     if not p.is_file():
         raise UserError(f"--store {p}: no results database there; run `pbrbench run` first or pass --store")
-    return Store(p)
+    return Store(p, readonly=None)
