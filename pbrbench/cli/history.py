@@ -10,7 +10,9 @@ def register(sub):
     from pbrbench.render.quality import names
 
     p.add_argument("--quality", default=None, choices=names())
-    p.add_argument("--limit", type=int, default=30, help="show the last N runs (default 30)")
+    from pbrbench.cli.common import int_at_least
+
+    p.add_argument("--limit", type=int_at_least(1), default=30, help="show the last N runs (default 30)")
     add_store(p)
     p.set_defaults(func=run)
 

@@ -105,7 +105,11 @@ def main(argv: list[str] | None = None) -> int:
             # a disk or permission fault the command did not turn into a message itself
             if args.debug:
                 raise
-            _say(f"error: {disk_error(exc, 'cannot write or read a file')}")
+            import errno
+
+            writing = exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOTDIR,
+                                    errno.EEXIST, errno.EISDIR)
+            _say(f"error: {disk_error(exc, 'cannot write' if writing else 'cannot read or write')}")
             return EXIT_USER
         except sqlite3.Error as exc:
             if args.debug:

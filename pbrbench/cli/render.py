@@ -54,8 +54,12 @@ def run(args) -> int:
     from pbrbench.render.groundtruth import n_passes
     from pbrbench.scene.load import load_library, resolve
 
+    if args.all and args.scenes:
+        raise UserError("render: give SCENE names or --all, not both")
     if args.all:
         specs = list(load_library(st.scenes).values())
+        if not specs:
+            raise UserError(f"render --all: the scene library {st.scenes} has no scene files")
     elif args.scenes:
         specs = resolve(args.scenes, st.scenes)
     else:

@@ -17,6 +17,7 @@ import importlib.metadata
 import json
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -122,7 +123,15 @@ class RenderCache:
             raise
         return final
 
+    def _check_root(self):
+        if self.root.exists() and not self.root.is_dir():
+            from pbrbench.errors import DiskError
+
+            raise DiskError(f"render cache {self.root}: is a file, not a directory; choose another with --cache or "
+                            "PBRBENCH_CACHE")
+
     def entries(self) -> list[Path]:
+        self._check_root()
         return sorted(p for p in (self.root / "gt").glob("*/*") if p.is_dir() and not p.name.startswith(".tmp-"))
 
     def info(self) -> dict:
@@ -132,15 +141,29 @@ class RenderCache:
         return {"root": str(self.root), "entries": len(entries), "bytes": size, "stale_temporaries": len(stale)}
 
     def clear(self) -> int:
+        """Remove every entry (and unfinished temporaries); returns how many entries there were.
+        A cache that cannot be emptied (read-only, no permission) raises a one-line DiskError."""
         n = len(self.entries())
-        shutil.rmtree(self.root / "gt", ignore_errors=True)
+        gt = self.root / "gt"
+        if gt.exists() and not gt.is_dir():
+            raise disk_error(NotADirectoryError(20, "Not a directory", str(gt)), f"render cache {self.root}",
+                             option="--cache or PBRBENCH_CACHE")
+        if not gt.exists():
+            return n
+        errors: list[OSError] = []
+        shutil.rmtree(gt, onexc=lambda fn, path, exc: errors.append(exc)) if sys.version_info >= (3, 12) else \
+            shutil.rmtree(gt, onerror=lambda fn, path, info: errors.append(info[1]))
+        if errors or gt.exists():
+            exc = errors[0] if errors else OSError(f"{gt} could not be removed")
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE")
         return n
 
 
 def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
     """The last line of defence against a useless render: refuse (UserError naming the scene) a
-    ground truth whose radiance is non-finite anywhere, whose camera sees no geometry, or whose
-    radiance is zero everywhere although the camera sees geometry.  Such a render is never cached."""
+    ground truth whose radiance is non-finite anywhere or zero in every pixel (every scene has a
+    light that emits: the schema refuses the others).  Such a render is never cached.  The message
+    says whether the camera sees geometry (the coverage pass) or not."""
     where = f"scene {spec.name!r}" + (f" ({spec.source})" if spec.source else "")
     for name in ("radiance", "direct"):
         if name in gt:
@@ -148,14 +171,15 @@ def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
             if bad:
                 raise UserError(f"{where}: the rendered {name} has {bad} non-finite value(s) (NaN or inf); the scene's "
                                 "numbers are out of the renderer's range (check sizes, positions and powers); not cached")
+    if (gt["radiance"] > 0).any():
+        return
     if "coverage" in gt and not (gt["coverage"] > 0).any():
-        raise UserError(f"{where}: the camera sees no geometry (coverage is 0 in every pixel): check camera.origin / "
-                        "target / half_width and that the shapes lie between near_clip and far_clip; not cached")
-    rad = gt["radiance"]
-    if not (rad > 0).any():
-        raise UserError(f"{where}: the rendered radiance is zero in every pixel although the camera sees geometry: "
-                        "no light reaches the visible surfaces (light directions point from the scene toward the "
-                        "source; check the lights' positions and directions and the albedos); not cached")
+        raise UserError(f"{where}: the rendered radiance is zero in every pixel and the camera sees no geometry: check "
+                        "camera.origin / target / half_width and that the shapes lie between near_clip and far_clip; "
+                        "not cached")
+    raise UserError(f"{where}: the rendered radiance is zero in every pixel although the camera sees geometry: "
+                    "no light reaches the visible surfaces (light directions point from the scene toward the "
+                    "source; check the lights' positions and directions and the albedos); not cached")
 
 
 def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCache | None = None,

@@ -167,6 +167,7 @@ def llvm_major(path: str) -> int | None:
 
 
 _PREFERRED: dict = {}
+_NOTICED: set[str] = set()
 
 
 def configure(settings) -> None:
@@ -229,7 +230,15 @@ def cuda_available() -> bool:
 
 
 def _notice(notes: list[str]) -> str | None:
-    return "pbrbench: " + "; ".join(notes) if notes else None
+    """The notice of a choice, printed on stderr the first time it is made in this process (the
+    choice is made several times per command: its notice reaches the user once)."""
+    if not notes:
+        return None
+    text = "pbrbench: " + "; ".join(notes)
+    if text not in _NOTICED:
+        _NOTICED.add(text)
+        print(text, file=sys.stderr, flush=True)
+    return text
 
 
 def choose_variant(explicit: str | None = None) -> VariantChoice:
@@ -286,7 +295,6 @@ def choose_variant(explicit: str | None = None) -> VariantChoice:
 
 
 _STATE: dict = {}
-_NOTICED: set[str] = set()
 
 
 def known_variants() -> list[str] | None:
@@ -336,15 +344,40 @@ def mitsuba(variant: str | None = None):
             )
         return _STATE["mi"]
     choice = choose_variant(variant)
-    if choice.notice and choice.notice not in _NOTICED:
-        _NOTICED.add(choice.notice)
-        print(choice.notice, file=sys.stderr)
-    import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+    mi = _import_mitsuba()
 
     if choice.variant not in mi.variants():
         raise UserError(f"variant {choice.variant!r} is not in this mitsuba build; choose one of {', '.join(mi.variants())}")
     mi.set_variant(choice.variant)
     _STATE.update(mi=mi, choice=choice)
+    return mi
+
+
+def _import_mitsuba():
+    """``import mitsuba``; when pbrbench disabled libLLVM (``DRJIT_LIBLLVM_PATH=/dev/null``),
+    drjit's own two lines about failing to load it are dropped: the notice of
+    :func:`choose_variant` has said so once, in words that say what to do."""
+    if os.environ.get("DRJIT_LIBLLVM_PATH") != os.devnull or "drjit" in sys.modules:
+        import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+
+        return mi
+    import tempfile
+
+    with tempfile.TemporaryFile() as tmp:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode("utf-8", "replace")
+    for line in text.splitlines():
+        if os.devnull in line or "jitc_llvm_init" in line:
+            continue
+        print(line, file=sys.stderr)
     return mi
 
 

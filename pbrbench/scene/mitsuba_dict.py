@@ -155,8 +155,15 @@ def shape_dict(mi, spec: S.SceneSpec, i: int, shape, *, diffuse_only: bool = Fal
         key = hashlib.sha256(shape.model_dump_json().encode() + spec.content_hash().encode()).hexdigest()[:24]
         path = os.path.join(_scratch_dir(), f"hf_{key}.ply")
         if not os.path.exists(path):  # built once per process, reused by every pass
-            write_ply(path + ".tmp", *heightfield_mesh(shape, spec.base_dir))
-            os.replace(path + ".tmp", path)
+            mesh = heightfield_mesh(shape, spec.base_dir)
+            try:
+                write_ply(path + ".tmp", *mesh)
+                os.replace(path + ".tmp", path)
+            except OSError as exc:
+                from pbrbench.errors import disk_error
+
+                raise disk_error(exc, f"scratch directory {os.path.dirname(path)} (heightfield meshes)",
+                                 option="TMPDIR") from None
         d.update(type="ply", filename=path, face_normals=False)
         if shape.rotate:
             d["to_world"] = rot
