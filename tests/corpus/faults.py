@@ -4,7 +4,8 @@
 write below ``DIR`` failing the way the operating system would fail it:
 
 - ``readonly``: a read-only file system (``EROFS``) for files, directories, renames, removals and
-  SQLite (connections below DIR are opened read-only, so reading works and writing fails);
+  SQLite (a read-write open fails, a read-only open of a WAL database fails for want of its -shm
+  file, an ``immutable`` open works: what SQLite does in a read-only directory);
 - ``denied``: ``EACCES`` (a directory without write permission), the same places;
 - ``full``: a full disk: the first ``BUDGET`` bytes written below DIR (default 0) go through, then
   ``ENOSPC``, after the partial data reached the file (as a real full disk leaves it); OpenEXR's
@@ -155,16 +156,25 @@ def install(fault: Fault) -> None:
         return _REAL["rmtree"](path, ignore_errors=ignore_errors, onerror=onerror, **kw)
 
     def connect(database, *a, **k):
-        if isinstance(database, (str, os.PathLike)) and not str(database).startswith("file:") and fault.below(database):
-            if fault.kind == "full":
-                return _FullConnection(_REAL["connect"](database, *a, **k), fault)
-            if not os.path.exists(database):
-                raise sqlite3.OperationalError("unable to open database file")
-            from urllib.parse import quote
+        """A read-only directory as SQLite meets it: a read-write open fails, a ``mode=ro`` open
+        of a WAL database needs its -shm file (which cannot be created), ``immutable=1`` works."""
+        target = str(database)
+        uri = target.startswith("file:")
+        path = target[5:].split("?", 1)[0] if uri else target
+        if uri:
+            from urllib.parse import unquote
 
-            k.pop("uri", None)
-            return _REAL["connect"]("file:" + quote(os.path.realpath(database)) + "?mode=ro", *a, uri=True, **k)
-        return _REAL["connect"](database, *a, **k)
+            path = unquote(path)
+        if not fault.below(path):
+            return _REAL["connect"](database, *a, **k)
+        if fault.kind == "full":
+            return _FullConnection(_REAL["connect"](database, *a, **k), fault)
+        query = target.split("?", 1)[1] if uri and "?" in target else ""
+        if "immutable=1" in query:
+            return _REAL["connect"](database, *a, **k)
+        if "mode=ro" in query and os.path.exists(path + "-shm"):
+            return _REAL["connect"](database, *a, **k)
+        raise sqlite3.OperationalError("unable to open database file")
 
     builtins.open = fopen
     io.open = fopen
