@@ -129,6 +129,7 @@ def _start_slow(tmp_path):
     return p, line.split(" ", 1)[1].strip()
 
 
+@pytest.mark.slow
 def test_sigkill_leaves_an_interrupted_run_that_resumes(tmp_path):
     from tests.fakes import fake_run
 
@@ -157,6 +158,7 @@ def test_history_shows_interrupted_and_offers_resume(tmp_path, capsys):
     assert "interrupted" in out and f"pbrbench run --resume {rid}" in out
 
 
+@pytest.mark.slow
 def test_sigterm_marks_interrupted_and_removes_scratch(tmp_path):
     p, scratch = _start_slow(tmp_path)
     assert os.path.isdir(scratch)

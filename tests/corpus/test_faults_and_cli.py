@@ -19,6 +19,8 @@ from tests.corpus.measure import (
     fault_cases,
 )
 
+pytestmark = pytest.mark.slow   # a subprocess (or several) per case
+
 FAULTS = fault_cases()
 CLI = cli_cases()
 NEEDS_RENDER = ("cache", "--out", "scratch")

@@ -65,6 +65,7 @@ CLI_SAMPLE = ["nonfinite-sphere-radius-inf", "degenerate-cylinder-equal-ends", "
               "expansion-sweep-10000", "structure-not-utf8", "types-radius-bool"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("stem", CLI_SAMPLE)
 def test_cli_refuses_in_one_line_with_exit_1(stem, tmp_path):
     path = SCENES / f"{stem}.toml"
