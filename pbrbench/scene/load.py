@@ -35,6 +35,7 @@ LIMITS = {
     "samples_per_file": 1e11,       # the same summed over a sweep
 }
 _OVERRIDE = "set PBRBENCH_ALLOW_LARGE=1 to render it anyway"
+MAX_SCENE_FILE_BYTES = 16 * 2**20
 
 
 def _allow_large() -> bool:
@@ -286,6 +287,13 @@ def parse_file(path: str | Path) -> dict:
         raise SceneError(f"{path}: is a directory; give a .toml scene file or a name from `pbrbench scenes`")
     if not p.is_file():
         raise SceneError(f"{path}: no such scene file; give a name from `pbrbench scenes` or a path to a .toml file")
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
+    if size > MAX_SCENE_FILE_BYTES:
+        raise SceneError(f"{path}: {size / 2**20:.1f} MiB, larger than any scene file should be (limit "
+                         f"{MAX_SCENE_FILE_BYTES // 2**20} MiB); put large data in .npy files the scene names")
     try:
         with open(p, "rb") as f:
             return tomllib.load(f)

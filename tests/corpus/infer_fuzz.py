@@ -188,15 +188,15 @@ def _specs(B):
         "light_from_shading_contour": ({"image": B["shade"]}, {"mask": m}, {"seed": 0}),
         "light_from_shading_lee_rosenfeld1985": ({"image": B["shade"]}, {"mask": m}, {}),
         "light_from_shading": ({"image": B["shade"]}, {"mask": m}, {}),
-        "shape_from_shading_horn1989": ({"image": B["shade"], "light": B["light"]}, {"mask": m, "albedo": 0.8},
-                                        {"pixel_size": 1.0, "max_iter": 5, "tol": 1e-4, "theta_max_deg": 88.0, "smoothness": 1.0,
+        "shape_from_shading_horn1989": ({"image": B["shade"], "light": B["light"]}, {"mask": m},
+                                        {"albedo": 0.8, "pixel_size": 1.0, "max_iter": 5, "tol": 1e-4, "theta_max_deg": 88.0, "smoothness": 1.0,
                                          "smoothness_min": 0.02, "integrability": 1.0, "n_stages": 2, "levels": 2}),
-        "shape_from_shading_tsai_shah1994": ({"image": B["shade"], "light": B["light"]}, {"mask": m, "albedo": 0.8},
-                                             {"pixel_size": 1.0, "max_iter": 5, "tol": 1e-4, "damping": 0.01}),
-        "shape_from_shading_pentland1990": ({"image": B["shade"], "light": B["light"]}, {"mask": m, "albedo": 0.8},
-                                            {"pixel_size": 1.0, "regularization": 0.1}),
-        "shape_from_shading_kimmel2001": ({"image": B["shade"], "light": B["light"]}, {"mask": m, "albedo": 0.8},
-                                          {"pixel_size": 1.0, "singular_delta": 1e-3, "e_min": 0.01}),
+        "shape_from_shading_tsai_shah1994": ({"image": B["shade"], "light": B["light"]}, {"mask": m},
+                                             {"albedo": 0.8, "pixel_size": 1.0, "max_iter": 5, "tol": 1e-4, "damping": 0.01}),
+        "shape_from_shading_pentland1990": ({"image": B["shade"], "light": B["light"]}, {"mask": m},
+                                            {"albedo": 0.8, "pixel_size": 1.0, "regularization": 0.1}),
+        "shape_from_shading_kimmel2001": ({"image": B["shade"], "light": B["light"]}, {"mask": m},
+                                          {"albedo": 0.8, "pixel_size": 1.0, "singular_delta": 1e-3, "e_min": 0.01}),
         "shape_from_shading": ({"image": B["shade"], "light": B["light"]}, {"mask": m}, {}),
     }
     return S
@@ -204,7 +204,7 @@ def _specs(B):
 
 # "huge" values that are legitimate for an option (a finite answer is right; iteration counts
 # and pyramid depths are the caller's budget: they may be slow, not wrong)
-HUGE_OK = {"levels", "n_stages", "samples", "seed", "max_iter", "maxiter", "saturation", "max_area",
+HUGE_OK = {"albedo", "levels", "n_stages", "samples", "seed", "max_iter", "maxiter", "saturation", "max_area",
            "smoothness", "regularization", "damping", "integrability", "min_excess", "ratio", "threshold"}
 # options where 0 / negative is meaningful
 NEG_OK = {"seed"}
