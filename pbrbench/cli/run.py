@@ -70,6 +70,12 @@ def run(args) -> int:
         raise UserError("--workers only applies to --executor dask")
     if args.scheduler and args.executor != "dask":
         raise UserError("--scheduler only applies to --executor dask")
+    if args.tasks:  # before anything is created on disk
+        from pbrbench.tasks import task_names
+
+        unknown = [t for t in args.tasks if t not in task_names()]
+        if unknown:
+            raise UserError(f"--tasks: unknown task(s) {', '.join(map(repr, unknown))}; choose from {', '.join(task_names())}")
     if args.resume and (args.tasks or args.update_baselines):
         raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
     cfg = RunConfig(tasks=args.tasks, quality=args.quality, seed=args.seed, executor=args.executor,

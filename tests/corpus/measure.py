@@ -114,11 +114,11 @@ def _faulty(kind, under, budget=None):
     return [sys.executable, str(HERE / "faults.py"), kind, str(under)] + ([str(budget)] if budget is not None else []) + ["--"]
 
 
-def _run(cmd, src, env=None, timeout=300):
+def _run(cmd, src, env=None, timeout=300, cwd=None):
     e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_")}
     e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0", **(env or {}))
     try:
-        return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=tempfile.gettempdir())
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=cwd or tempfile.gettempdir())
     except subprocess.TimeoutExpired:
         return None
 
@@ -373,7 +373,9 @@ def classify_fault(name, make, src: Path) -> tuple[str, str]:
             cmd, env, want_rc, path, check = make(tmp, src)
         except AssertionError as e:
             return "setup_failed", str(e)[-200:]
-        r = _run(cmd, src, env)
+        work = tmp / "cwd"
+        work.mkdir()
+        r = _run(cmd, src, env, cwd=work)
         if r is None:
             return "timeout", ""
         err = r.stderr.strip()
@@ -522,9 +524,13 @@ def classify_cli(name, make, src: Path) -> tuple[str, str]:
         except AssertionError as e:
             return "setup_failed", str(e)[-200:]
         store_before = _store_status(tmp / "h.sqlite", src) if (tmp / "h.sqlite").exists() else None
-        r = _run([sys.executable, "-m", "pbrbench", *args], src, env, timeout=120)
+        work = tmp / "cwd"   # relative defaults (reports/, the store) land inside the case's directory
+        work.mkdir()
+        r = _run([sys.executable, "-m", "pbrbench", *args], src, env, timeout=120, cwd=work)
         if r is None:
             return "timeout", ""
+        if any(work.iterdir()) and want_rc == 1:
+            return "other", f"a refused command left files behind: {sorted(p.name for p in work.rglob('*'))[:5]}"
         err = r.stderr.strip()
         lines = [ln for ln in err.splitlines() if ln.strip()]
         if "Traceback" in err or r.returncode in (-6, 134):
