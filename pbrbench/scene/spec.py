@@ -345,8 +345,6 @@ def _check_surface_params(hf: Heightfield) -> None:
     surface once on the mesh grid: it must be finite and leave at least one triangle."""
     import difflib
 
-    import numpy as np
-
     from pbrbench.shading import surfaces
 
     fn = surfaces.SURFACES[hf.surface]
@@ -392,6 +390,27 @@ def _check_surface_params(hf: Heightfield) -> None:
             clean[key] = tuple(pts)
         else:  # pragma: no cover - no surface has such a parameter today
             clean[key] = v
+    key = json.dumps([hf.surface, sorted(clean.items()), hf.resolution, hf.half_width, hf.z_scale], default=str)
+    problem = _SURFACE_CHECKS.get(key)
+    if problem is None:
+        problem = _surface_problem(hf, clean)
+        if len(_SURFACE_CHECKS) > 512:
+            _SURFACE_CHECKS.clear()
+        _SURFACE_CHECKS[key] = problem
+    if problem:
+        raise At(("params",), problem)
+
+
+_SURFACE_CHECKS: dict[str, str] = {}   # the members of a sweep share their heightfield: built once
+
+
+def _surface_problem(hf: Heightfield, clean: dict) -> str:
+    """'' if the surface builds on the mesh grid (finite, within range, at least one triangle),
+    else what is wrong."""
+    import numpy as np
+
+    from pbrbench.shading import surfaces
+
     n = hf.resolution
     xs = np.linspace(-hf.half_width, hf.half_width, n)
     x, y = np.meshgrid(xs, xs[::-1])
@@ -399,18 +418,18 @@ def _check_surface_params(hf: Heightfield) -> None:
         with np.errstate(all="ignore"):
             surf = surfaces.evaluate(hf.surface, x, y, **clean)
     except Exception as exc:  # noqa: BLE001 - any failure of the surface is the parameters' fault
-        raise At(("params",), f"surface {hf.surface!r} rejects these parameters ({type(exc).__name__}: {exc}); "
-                              "see pbrbench/shading/surfaces.py for its parameters") from None
+        return (f"surface {hf.surface!r} rejects these parameters ({type(exc).__name__}: {exc}); "
+                "see pbrbench/shading/surfaces.py for its parameters")
     zs = surf.z * hf.z_scale
     if not (np.isfinite(zs).all() and np.isfinite(surf.fx).all() and np.isfinite(surf.fy).all()):
-        raise At(("params",), f"surface {hf.surface!r} is not finite with these parameters; choose smaller values")
+        return f"surface {hf.surface!r} is not finite with these parameters; choose smaller values"
     if np.abs(zs).max(initial=0.0) > MAX_COORD:
-        raise At(("params",), f"surface {hf.surface!r} reaches heights above {MAX_COORD:g} (times z_scale); "
-                              "choose smaller values")
+        return f"surface {hf.surface!r} reaches heights above {MAX_COORD:g} (times z_scale); choose smaller values"
     m = surf.mask
     if not (m[:-1, :-1] & m[1:, :-1] & m[:-1, 1:]).any() and not (m[:-1, 1:] & m[1:, :-1] & m[1:, 1:]).any():
-        raise At(("params",), f"surface {hf.surface!r} has no triangle inside |x|, |y| <= half_width with these "
-                              "parameters (its domain is empty); enlarge it (e.g. its radius or extent)")
+        return (f"surface {hf.surface!r} has no triangle inside |x|, |y| <= half_width with these "
+                "parameters (its domain is empty); enlarge it (e.g. its radius or extent)")
+    return ""
 
 
 Shape = Annotated[Sphere | Rectangle | Box | Cylinder | Disk | Heightfield, Field(discriminator="type")]
