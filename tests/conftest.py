@@ -11,7 +11,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 
-# Choose the Mitsuba variant before anything imports drjit (notes/mitsuba.md §0).
+# Choose the Mitsuba variant before anything imports drjit (docs/rendering.md).
 from pbrbench.render.variant import choose_variant  # noqa: E402
 
 choose_variant()

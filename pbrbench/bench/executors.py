@@ -15,11 +15,47 @@ from __future__ import annotations
 
 import os
 import sys
+from contextlib import contextmanager
 
 from pbrbench.bench.source import RENDER_LOCK
 from pbrbench.errors import UserError
 
 PLUGIN_NAME = "pbrbench-mitsuba"
+
+
+def _plugin():
+    """This Dask worker's pbrbench plugin, or None outside a worker."""
+    try:
+        from distributed import get_worker
+
+        return get_worker().plugins.get(PLUGIN_NAME)
+    except (ImportError, ValueError):
+        return None
+
+
+def job_threads() -> int:
+    """BLAS / OpenMP threads a job may use: the worker's share of the cores on a Dask worker,
+    1 in a local run (see :func:`blas_threads`)."""
+    plugin = _plugin()
+    return max(1, int(getattr(plugin, "threads", None) or 1)) if plugin is not None else 1
+
+
+@contextmanager
+def blas_threads(n: int):
+    """Limit the BLAS and OpenMP thread pools (threadpoolctl) to ``n`` while a job runs.
+
+    A job's algorithms are NumPy code on images of a few hundred pixels a side, where BLAS threads
+    gain little and oversubscribe the machine when several runs or Dask workers share it (each
+    process would start one thread per core).  Mitsuba's own pool is set per worker
+    (:func:`worker_setup`); a local run renders with all cores.
+    """
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # pragma: no cover - a declared dependency
+        yield
+        return
+    with threadpool_limits(limits=max(1, int(n))):
+        yield
 
 
 class LocalExecutor:
@@ -54,12 +90,7 @@ def worker_setup(variant: str | None, threads: int | None, env: dict, worker=Non
 
 def worker_source(source):
     """The worker's own instance of ``source`` (so its memory cache survives between jobs)."""
-    try:
-        from distributed import get_worker
-
-        plugin = get_worker().plugins.get(PLUGIN_NAME)
-    except (ImportError, ValueError):
-        return source
+    plugin = _plugin()
     if plugin is None:
         return source
     return plugin.sources.setdefault(source.identity(), source)
@@ -74,6 +105,7 @@ def make_worker_plugin(variant: str | None, threads: int | None, env: dict | Non
 
         def __init__(self, args):
             self.args = args
+            self.threads = args[1]
             self.sources = {}
 
         def setup(self, worker):

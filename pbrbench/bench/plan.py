@@ -55,7 +55,8 @@ def task_info(tasks: dict, registry) -> dict:
     for n, t in tasks.items():
         algs = registry.for_task(n)
         out[n] = {"description": t.description, "conditions": list(t.conditions),
-                  "headline_metric": t.headline_metric,
+                  "headline_metric": t.headline_metric, "reference_condition": t.reference_condition,
+                  "notes": t.notes,
                   "algorithms": [a.name for a in algs],
                   "algorithm_kinds": {a.name: a.kind for a in algs},
                   "algorithm_versions": {a.name: a.full_version for a in algs},

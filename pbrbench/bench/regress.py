@@ -14,6 +14,12 @@ metrics that do not depend on the seed at all (the ground truth is bit-reproduci
 filter and fixed render seed, docs/rendering.md).  The value kept is that of the run with the
 base seed, which the regression suite reproduces.
 
+Each entry also records the score's standard error when the baseline was measured
+(``uncertainty``: Monte Carlo noise of the render plus the input-noise seed,
+:mod:`pbrbench.bench.uncertainty`).  A comparison allows at least ``2 * sqrt(u_base^2 + u_new^2)``
+(:data:`pbrbench.uncertainty.SIGNIFICANCE` combined standard errors): a change smaller than the
+noise of the two measurements is not a change.
+
 A score *regresses* when it moved in the worse direction by more than its tolerance (a value
 that became NaN counts as a regression); it *improved* when it moved the other way by more than
 the tolerance (a hint to run ``pbrbench run --update-baselines``).
@@ -26,6 +32,8 @@ import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from pbrbench.uncertainty import SIGNIFICANCE, combined_se
 
 K = 3.0
 ABS_FLOOR = 1e-6
@@ -50,6 +58,11 @@ def _val(x) -> float:
     return float("nan") if x is None else float(x)
 
 
+def _unc(s: dict) -> float | None:
+    u = s.get("uncertainty")
+    return float(u) if u is not None and math.isfinite(float(u)) else None
+
+
 def tolerance(value: float, spread: float) -> float:
     floor = ABS_FLOOR + REL_FLOOR * (abs(value) if math.isfinite(value) else 0.0)
     return max(K * spread, floor)
@@ -68,12 +81,14 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list[int], n
         value = _val(s["value"])
         entries[key] = {**{f: s.get(f, "") for f in KEY_FIELDS}, "scene_hash": s.get("scene_hash", ""),
                         "algorithm_version": s.get("algorithm_version", ""),
+                        "uncertainty": _unc(s),
                         "value": value if math.isfinite(value) else None,
                         "better": s.get("better", "lower"), "spread": spread, "n_seeds": len(vals),
                         "tolerance": tolerance(value, spread)}
     return {"format": FORMAT, "quality": quality, "seeds": list(seeds),
             "method": (f"tolerance = max({K:g} * spread over {len(runs)} seeds, {ABS_FLOOR:g} + {REL_FLOOR:g} * |value|); "
-                       "spread = max - min over the seeds; value from the first seed"),
+                       "spread = max - min over the seeds; value and uncertainty (one standard error) from the first "
+                       f"seed; a comparison allows at least {SIGNIFICANCE:g} * sqrt(u_base^2 + u_new^2)"),
             "note": note, "entries": entries}
 
 
@@ -152,6 +167,9 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
             changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {b['algorithm_version']} -> {s['algorithm_version']}")
         old, cur = _val(b["value"]), _val(s["value"])
         tol = float(b["tolerance"])
+        ub, un = b.get("uncertainty"), _unc(s)
+        if ub is not None and un is not None:
+            tol = max(tol, SIGNIFICANCE * combined_se(ub, un))
         better = b.get("better", s.get("better", "lower"))
         kind = None
         if math.isnan(old):

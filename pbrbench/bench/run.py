@@ -28,11 +28,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from pbrbench.bench import lifecycle
-from pbrbench.bench.executors import make_executor, worker_source
+from pbrbench.bench.executors import blas_threads, job_threads, make_executor, worker_source
+from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
 from pbrbench.bench.store import Store
 from pbrbench.errors import UserError
+from pbrbench.registry import DEFAULT_TIME_LIMIT
 
 
 @dataclass
@@ -50,10 +52,15 @@ class RunConfig:
     check: bool = False
     update_baselines: bool = False
     algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
+    job_cache: bool = True         # reuse finished jobs whose inputs and code are unchanged
+    uncertainty: bool = True       # score the half-sample replicates (the standard errors)
+    algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin call; None: in-process
+    entry_points: bool = True                     # load the installed plugins (entry points)
 
     def recorded(self) -> dict:
         return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,
-                "workers": self.workers, "algorithms": list(self.algorithms)}
+                "workers": self.workers, "algorithms": list(self.algorithms),
+                "algorithm_time_limit": self.algorithm_time_limit, "entry_points": self.entry_points}
 
 
 @dataclass
@@ -69,6 +76,7 @@ class RunOutcome:
     job_seconds: float = 0.0
     wall_seconds: float = 0.0
     renders: int = 0
+    n_cached: int = 0
     task_info: dict = field(default_factory=dict)
 
 
@@ -91,18 +99,24 @@ def _check_scores(job, scores) -> list[dict]:
     return out
 
 
-def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorithms, quality) -> dict:
-    """Run one job and draw its figures (in this process or on a worker); never raises."""
+def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorithms, quality,
+                uncertainty: bool = True) -> dict:
+    """Run one job, its replicates (the standard errors: :mod:`pbrbench.bench.uncertainty`) and
+    draw its figures (in this process or on a worker); never raises."""
+    from pbrbench.bench.uncertainty import attach, replicate_scores
     from pbrbench.report.figures import job_figures
 
     t0 = time.perf_counter()
     c0 = time.process_time()
     try:
         src = worker_source(source)
-        with RENDER_LOCK:
+        with RENDER_LOCK, blas_threads(job_threads()):
             gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
             result = task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
-        scores = _check_scores(job, result.scores)
+            reps = {}
+            if uncertainty and result.scores:
+                reps = replicate_scores(task, job, gts, seed=seed, algorithms=algorithms, quality=quality)
+        scores = attach(_check_scores(job, result.scores), reps)
         files, manifest = job_figures(result, job_dir)
         error = None
     except Exception:  # noqa: BLE001 - a failing job is recorded, the run goes on
@@ -140,7 +154,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
     from pbrbench.bench import regress
-    from pbrbench.registry import builtin_registry
+    from pbrbench.registry import normalize_algorithm_spec, plugin_registry
     from pbrbench.render.quality import get_quality
     from pbrbench.report.figures import slug
     from pbrbench.settings import Settings
@@ -157,6 +171,8 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         rc = run["config"]
         cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
         cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
+        cfg.algorithm_time_limit = rc.get("algorithm_time_limit", cfg.algorithm_time_limit)
+        cfg.entry_points = rc.get("entry_points", cfg.entry_points)
         settings = settings.with_(variant=settings.variant or rc.get("variant"))
         prior_done = store.done_jobs(run_id)
     quality = get_quality(cfg.quality)
@@ -164,8 +180,10 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         tasks = load_tasks(cfg.tasks)
     if not tasks:
         raise UserError("no task to run; pass --tasks NAME (see `pbrbench run --help`)")
-    if registry is None:
-        registry = builtin_registry(tasks)
+    if registry is None:   # the built-ins, the installed plugins and the --algorithm specs
+        cfg.algorithms = [normalize_algorithm_spec(a) for a in cfg.algorithms]
+        registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
+                                   time_limit=cfg.algorithm_time_limit, log=log)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
                                          scenes=settings.scenes)
     variant = source.resolve_variant()
@@ -211,13 +229,32 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
             store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1])
         outcome.render_seconds = time.perf_counter() - t0
 
-        # ---- jobs
+        # ---- jobs (finished ones with unchanged inputs come from the job cache)
         t0 = time.perf_counter()
         algs = {t: registry.for_task(t) for t in tasks}
-        args = [(tasks[j.task], j, {n: specs[n] for n in (j.scene, *j.extra_scenes)}, source, cfg.seed, slug(j.key),
-                 algs[j.task], quality) for j in todo]
-        with Progress(len(todo), "jobs", bars=bars, unit="job") as bar:
+        jcache = JobCache(Path(settings.cache) / "jobs" if cfg.job_cache else None)
+        fps, cached_results, args = {}, [], []
+        for j in todo:
+            fp = fingerprint(j, seed=cfg.seed, quality=quality, algorithms=algs[j.task], task=tasks[j.task],
+                             gt_keys=[source.gt_key(specs[n]) for n in (j.scene, *j.extra_scenes)],
+                             uncertainty=cfg.uncertainty)
+            fps[j.key] = fp
+            hit = jcache.get(fp)
+            if hit is not None:
+                cached_results.append(hit)
+            else:
+                args.append((tasks[j.task], j, {n: specs[n] for n in (j.scene, *j.extra_scenes)}, source, cfg.seed,
+                             slug(j.key), algs[j.task], quality, cfg.uncertainty))
+        outcome.n_cached = len(cached_results)
+
+        def results():
+            yield from cached_results
             for res in ex.imap(execute_job, args):
+                jcache.put(fps[res["key"]], res)
+                yield res
+
+        with Progress(len(todo), "jobs", bars=bars, unit="job") as bar:
+            for res in results():
                 if res["files"]:
                     _write_files(run_dir, res["files"])
                 store.add_job_result(run_id, res["key"], res["task"], res["scores"], seconds=res["seconds"],

@@ -70,7 +70,8 @@ class GroundTruthSource:
             out[n] = got[0]
         return out
 
-    def _key(self, spec) -> str:
+    def gt_key(self, spec) -> str:
+        """The render-cache key of ``spec``'s ground truth (what identifies its content)."""
         from pbrbench.render.cache import cache_key
 
         return cache_key(spec, self.quality.name, self.resolve_variant())
@@ -78,7 +79,7 @@ class GroundTruthSource:
     # ------------------------------------------------------------------ ground truths
     def cached_meta(self, spec) -> dict | None:
         """The cached ground truth's metadata, or None if it has to be rendered (no render here)."""
-        return self.cache.meta(self._key(spec))
+        return self.cache.meta(self.gt_key(spec))
 
     def render(self, spec) -> tuple[dict, bool]:
         """Render ``spec`` into the cache if missing; returns (metadata, from_cache)."""

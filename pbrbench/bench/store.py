@@ -10,8 +10,9 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
   variant, machine, quality, config (JSON), status (running | complete | interrupted | failed),
   comparison (JSON: the regression comparison with the baselines, made once by the run);
 * ``scores``: run, task, scene, scene_hash, condition, algorithm, algorithm_version, metric,
-  value, uncertainty (one standard error, NULL when none was estimated), seconds, better
-  (lower | higher), unit, job (the job key, for resuming);
+  value, uncertainty (one standard error, NULL when none was estimated) and the replicate values
+  behind it (rep_a, rep_b: the two half-sample renders; rep_noise: a second seed), seconds,
+  better (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
   Monte Carlo noise floor, render time): the report shows its noise without re-reading renders.
@@ -112,7 +113,13 @@ CREATE TABLE ground_truths (
 ALTER TABLE scores ADD COLUMN uncertainty REAL;
 ALTER TABLE runs ADD COLUMN comparison TEXT
 """),
-    (3, "the process of a run (host, pid, start) and its heartbeat, to tell a dead run from a live one", """
+    (3, "the replicate values behind each uncertainty (two half-sample renders, a second seed)", """
+ALTER TABLE scores ADD COLUMN rep_a REAL;
+ALTER TABLE scores ADD COLUMN rep_b REAL;
+ALTER TABLE scores ADD COLUMN rep_noise REAL;
+ALTER TABLE ground_truths ADD COLUMN tags TEXT
+"""),
+    (4, "the process of a run (host, pid, start) and its heartbeat, to tell a dead run from a live one", """
 ALTER TABLE runs ADD COLUMN host TEXT;
 ALTER TABLE runs ADD COLUMN pid INTEGER;
 ALTER TABLE runs ADD COLUMN pid_start TEXT;
@@ -124,7 +131,7 @@ SCHEMA_VERSION = MIGRATIONS[-1][0]
 RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version", "drjit_version",
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
-                "metric", "value", "seconds", "better", "unit", "job", "uncertainty")
+                "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_a", "rep_b", "rep_noise")
 
 
 def _now() -> str:
@@ -484,7 +491,8 @@ class Store:
             rows.append((run_id, d["task"], d["scene"], d.get("scene_hash", "") or "", d.get("condition", "") or "",
                          d["algorithm"], d.get("algorithm_version", "") or "", d["metric"], _num(d["value"]),
                          _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key,
-                         _num(d.get("uncertainty"))))
+                         _num(d.get("uncertainty")), _num(d.get("rep_a")), _num(d.get("rep_b")),
+                         _num(d.get("rep_noise"))))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -516,10 +524,11 @@ class Store:
 
     def add_ground_truth(self, run_id: str, scene: str, meta: dict, *, from_cache: bool):
         with self.transaction() as c:
-            c.execute("INSERT OR REPLACE INTO ground_truths VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+            c.execute("INSERT OR REPLACE INTO ground_truths (run, scene, scene_hash, quality, spp, resolution, noise, "
+                      "render_seconds, from_cache, tags) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                       (run_id, scene, meta.get("scene_hash"), meta.get("quality"), meta.get("spp"),
                        json.dumps(meta.get("resolution")), json.dumps(meta.get("noise", {})),
-                       meta.get("wall_s"), int(bool(from_cache))))
+                       meta.get("wall_s"), int(bool(from_cache)), json.dumps(list(meta.get("tags", [])))))
 
     def ground_truths(self, run_id: str) -> list[dict]:
         out = []
@@ -527,6 +536,7 @@ class Store:
             d = dict(r)
             d["noise"] = json.loads(d["noise"] or "{}")
             d["resolution"] = json.loads(d["resolution"] or "null")
+            d["tags"] = json.loads(d.get("tags") or "[]")
             out.append(d)
         return out
 

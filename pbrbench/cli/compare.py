@@ -14,7 +14,7 @@ def register(sub):
     from pbrbench.cli.common import nonnegative_float
 
     p.add_argument("--rel", type=nonnegative_float, default=0.0, metavar="R",
-                   help="call a change unchanged when |b - a| <= R * |a| (default 0: exact)")
+                   help="also call a change unchanged when |b - a| <= R * |a| (default 0)")
     from pbrbench.cli.common import add_store
 
     add_store(p)
@@ -25,7 +25,12 @@ KEY = ("task", "scene", "condition", "algorithm", "metric")
 
 
 def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0) -> list[dict]:
-    """Rows {key fields, a, b, delta, direction} with direction better / worse / same / only-a / only-b."""
+    """Rows {key fields, a, b, delta, se, direction} with direction better / worse / same / only-a /
+    only-b.  A change is better or worse only beyond 2 combined standard errors of the two scores
+    (:data:`pbrbench.uncertainty.SIGNIFICANCE`; when both have one) plus ``rel * |a|``; below that
+    it is "same" (within the noise)."""
+    from pbrbench.uncertainty import SIGNIFICANCE, combined_se, finite
+
     A = {tuple(s[k] for k in KEY): s for s in a_scores}
     B = {tuple(s[k] for k in KEY): s for s in b_scores}
     rows = []
@@ -34,6 +39,8 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
         va = sa["value"] if sa else float("nan")
         vb = sb["value"] if sb else float("nan")
         better = (sb or sa)["better"]
+        se = combined_se(sa.get("uncertainty"), sb.get("uncertainty")) if sa and sb else float("nan")
+        noise = SIGNIFICANCE * se if finite(se) else 0.0
         if sa is None:
             d = "only-b"
         elif sb is None:
@@ -42,11 +49,11 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
             d = "same"
         elif math.isnan(va) or math.isnan(vb):
             d = "better" if math.isnan(va) else "worse"
-        elif abs(vb - va) <= rel * abs(va) or vb == va:
+        elif abs(vb - va) <= rel * abs(va) + noise or vb == va:
             d = "same"
         else:
             d = "better" if (vb < va) == (better == "lower") else "worse"
-        rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, better=better, direction=d))
+        rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, se=se, better=better, direction=d))
     return rows
 
 
@@ -63,9 +70,11 @@ def run(args) -> int:
     shown = [r for r in rows if args.all or r["direction"] != "same"]
     print(f"compare {a} -> {b}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
     if shown:
-        print(f"{'task':18s} {'scene':34s} {'condition':12s} {'algorithm':24s} {'metric':20s} {'a':>10s} {'b':>10s} {'delta':>10s}  direction")
+        cols = ("task", "scene", "condition", "algorithm", "metric")
+        w = {c: max([len(c)] + [len(str(r[c])) for r in shown]) for c in cols}
+        print("  ".join(c.ljust(w[c]) for c in cols) + f"  {'a':>10s} {'b':>10s} {'delta':>10s} {'± 2 SE':>9s}  direction")
         for r in shown:
-            print(f"{r['task'][:18]:18s} {r['scene'][:34]:34s} {r['condition'][:12]:12s} {r['algorithm'][:24]:24s} "
-                  f"{r['metric'][:20]:20s} {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s}  "
+            print("  ".join(str(r[c]).ljust(w[c]) for c in cols)
+                  + f"  {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s} {fmt(2 * r['se']):>9s}  "
                   f"{r['direction']} ({r['better']} is better)")
     return 0

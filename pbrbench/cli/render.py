@@ -18,10 +18,38 @@ def register(sub):
     add_quality(p)
     add_variant(p)
     add_cache(p)
-    p.add_argument("--out", default=None, help="write gt.exr, gt.json and PNG previews here, one folder per scene")
+    p.add_argument("--out", default=None, help="write gt.exr, gt.json (lights and camera in the camera frame, "
+                   "units, noise; read both with pbrbench.io.load_render) and PNG previews here, one folder per scene")
     p.add_argument("--force", action="store_true", help="re-render even if cached")
     p.add_argument("--no-previews", action="store_true", help="skip the PNG previews")
     p.set_defaults(func=run)
+
+
+RENDER_FORMAT = "pbrbench-render/1"
+
+
+def describe_render(spec, gt) -> dict:
+    """The JSON written beside a render's EXR: the ground truth's metadata (scene hash, quality,
+    samples, seed, versions, timings, Monte Carlo noise) plus the light set and lights
+    (direction toward the source in the camera frame, irradiance, positions), the camera
+    (type, frame, pixel size or field of view), the units and the channel list.  Read it back
+    with :func:`pbrbench.io.load_render`."""
+    from pbrbench.scene.geometry import UNITS, describe_camera, describe_lights
+
+    out = dict(gt.meta)
+    res = gt.meta.get("resolution")
+    if not res:
+        h, w = next(iter(gt.arrays.values())).shape[:2]
+        res = [w, h]
+    out.update(render_format=RENDER_FORMAT, camera=describe_camera(spec, res), units=dict(UNITS),
+               channels={k: list(v.shape) for k, v in sorted(gt.arrays.items())}, **describe_lights(spec))
+    out["quality_figures"] = {"quality": gt.meta.get("quality"), "spp": gt.meta.get("spp"),
+                              "resolution": res, "noise": gt.meta.get("noise", {})}
+    out["conventions"] = ("images (H, W[, C]) linear, row 0 at the top; normals unit vectors in the camera "
+                          "frame (x right, y up, z toward the camera); depth along the view axis; "
+                          "lightNN.* are the images under light_set[NN] alone; *_sd the per-pixel "
+                          "standard deviation of the image estimate")
+    return out
 
 
 def _safe(name: str) -> str:
@@ -31,8 +59,9 @@ def _safe(name: str) -> str:
     return s if s.strip(".") else "_" + s
 
 
-def _write_out(gt, where: Path, d: Path, previews: bool) -> None:
-    """Copy one ground truth into ``d`` (each file replaced atomically: whole or untouched)."""
+def _write_out(gt, where: Path, d: Path, previews: bool, meta: dict | None = None) -> None:
+    """Copy one ground truth into ``d`` (each file replaced atomically: whole or untouched);
+    ``gt.json`` holds ``meta`` (default: the ground truth's metadata)."""
     from pbrbench.errors import disk_error
     from pbrbench.io import copy_file, write_text
     from pbrbench.render.previews import write_previews
@@ -40,7 +69,7 @@ def _write_out(gt, where: Path, d: Path, previews: bool) -> None:
     try:
         d.mkdir(parents=True, exist_ok=True)
         copy_file(where / "gt.exr", d / "gt.exr")
-        write_text(d / "gt.json", json.dumps(gt.meta, indent=1, sort_keys=True))
+        write_text(d / "gt.json", json.dumps(gt.meta if meta is None else meta, indent=1, sort_keys=True))
         if previews:
             write_previews(gt, d)
     except OSError as exc:
@@ -79,7 +108,7 @@ def run(args) -> int:
         where = cache.entry_dir(gt.meta["cache_key"])
         if args.out:
             d = Path(args.out) / _safe(spec.name)
-            _write_out(gt, where, d, not args.no_previews)
+            _write_out(gt, where, d, not args.no_previews, meta=describe_render(spec, gt))
             where = d
         noise = gt.meta.get("noise", {}).get("radiance_rel_sd_rms", float("nan"))
         rows.append((spec.name, "cache" if cached else f"{gt.meta['wall_s']:.1f}s", noise))

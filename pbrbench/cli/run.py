@@ -38,6 +38,15 @@ def register(sub):
                    help="rerun with more seeds, measure the spread and rewrite tests/baselines/<quality>.json")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run (its id)")
     p.add_argument("--no-report", action="store_true", help="store scores but write no HTML report")
+    p.add_argument("--algorithm", action="append", default=[], metavar="TASK=MODULE:FUNCTION[:NAME]",
+                   help="score your own algorithm beside the built-in ones (repeatable): MODULE is a dotted module "
+                        "on sys.path or a path to a .py file, FUNCTION has the task's signature (docs/plugins.md), "
+                        "NAME defaults to FUNCTION; e.g. photometric_stereo=./mine.py:solve")
+    p.add_argument("--algorithm-time-limit", type=float, default=None, metavar="SECONDS",
+                   help="time limit of one plugin call (one job); a plugin past it is killed and scored as failed "
+                        "(default 600; 0: run plugins in this process, without a limit)")
+    p.add_argument("--no-plugins", action="store_true",
+                   help="do not load the installed plugins (entry points of the group pbrbench.algorithms)")
     add_variant(p)
     add_cache(p)
     p.set_defaults(func=run)
@@ -50,13 +59,27 @@ def summary_lines(outcome) -> list[str]:
     for h in headline_tables(outcome.scores, outcome.task_info):
         conds = h["conditions"]
         w = max([len("algorithm")] + [len(r["algorithm"]) for r in h["rows"]])
-        texts = [[c["text"] + (" !" if c["mark"] == "regression" else "") for c in r["cells"]] for r in h["rows"]]
+        texts = [[(f"({c['text']})" if c.get("cls") == "ns" else c["text"]) + (" !" if c["mark"] == "regression" else "")
+                  for c in r["cells"]] for r in h["rows"]]
         cw = [max([len(c)] + [len(t[i]) for t in texts]) + 2 for i, c in enumerate(conds)]
-        lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; mean over scenes; ! = regression)")
+        lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; {h['reference']} and the cost of each "
+                     "effect, mean over matched scenes ± 1 SE; ( ) = within 2 SE of zero; ! = regression)")
         lines.append("  " + "algorithm".ljust(w) + "".join(c.rjust(cw[i]) for i, c in enumerate(conds)))
         for r, t in zip(h["rows"], texts, strict=True):
             lines.append("  " + r["algorithm"].ljust(w) + "".join(x.rjust(cw[i]) for i, x in enumerate(t)))
     return lines
+
+
+def failure_lines(scores) -> list[str]:
+    """One line per algorithm scored as failed somewhere (the messages are in the report)."""
+    failed, total = {}, {}
+    for s in scores:
+        if s["metric"] == "failed":
+            key = (s["task"], s["algorithm"])
+            total[key] = total.get(key, 0) + 1
+            failed[key] = failed.get(key, 0) + int(s["value"] == 1.0)
+    return [f"pbrbench: {a} ({t}) scored as failed on {n} of {total[(t, a)]} job(s); the reasons are in the report's "
+            "'Algorithms scored as failed'" for (t, a), n in failed.items() if n]
 
 
 def run(args) -> int:
@@ -78,14 +101,27 @@ def run(args) -> int:
             raise UserError(f"--tasks: unknown task(s) {', '.join(map(repr, unknown))}; choose from {', '.join(task_names())}")
     if args.resume and (args.tasks or args.update_baselines):
         raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
-    cfg = RunConfig(tasks=args.tasks, quality=args.quality, seed=args.seed, executor=args.executor,
+    if args.resume and (args.algorithm or args.algorithm_time_limit is not None or args.no_plugins):
+        raise UserError("--resume reloads the run's own --algorithm specs and plugin settings; drop --algorithm, "
+                        "--algorithm-time-limit and --no-plugins")
+    limit = args.algorithm_time_limit
+    if limit is not None and limit < 0:
+        raise UserError(f"--algorithm-time-limit {limit:g}: give seconds >= 0 (0: no limit)")
+    from pbrbench.registry import DEFAULT_TIME_LIMIT
+
+    limit = DEFAULT_TIME_LIMIT if limit is None else (None if limit == 0 else limit)
+    tasks = [t.replace("-", "_") for t in args.tasks] if args.tasks else None
+    cfg = RunConfig(tasks=tasks, quality=args.quality, seed=args.seed, executor=args.executor,
                     scheduler=args.scheduler, workers=args.workers, resume=args.resume, report=not args.no_report,
-                    check=args.check, update_baselines=args.update_baselines)
+                    check=args.check, update_baselines=args.update_baselines, algorithms=list(args.algorithm),
+                    algorithm_time_limit=limit, entry_points=not args.no_plugins)
     o = run_benchmark(cfg, settings=st)
     print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
           f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
     for line in summary_lines(o):
         print(line)
+    for line in failure_lines(o.scores):
+        print(line, file=sys.stderr)
     code = EXIT_OK
     if o.errors:
         print(f"{len(o.errors)} job(s) failed (tracebacks in the report); rerun them with "

@@ -170,5 +170,6 @@ METRICS = table(
     ("bright1", "lower", "stops", "log2 radiance RMSE on the brightest 1 % of the pixels", "hdr_scores"),
     ("dark1", "lower", "stops", "log2 radiance RMSE on the darkest 1 % of the pixels", "hdr_scores"),
     ("invalid_fraction", "lower", "fraction", "fraction of pixels without a finite positive estimate", "hdr_scores"),
+    ("bracket_coverage", "higher", "fraction", "fraction of the pixels that at least one exposure measures (neither black nor saturated) in every channel", ""),
     ("response_rmse", "lower", "stops", "RMSE of the recovered inverse response vs the true one (log2, per-channel scale removed)", "response_rmse"),
 )

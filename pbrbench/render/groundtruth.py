@@ -1,7 +1,10 @@
 """Render the ground truth of a scene.
 
-Passes (each radiance-like pass is rendered as two half-sample renders with independent seeds,
-whose mean is the image and whose difference estimates its Monte Carlo noise):
+Passes (each radiance-like pass is rendered as two half-sample renders ``a`` and ``b`` with
+independent seeds; the image is their mean ``(a + b) / 2`` and the signed half-difference
+``X_delta = (a - b) / 2`` is kept, so both halves can be rebuilt, ``a = X + X_delta`` and
+``b = X - X_delta`` (:meth:`GroundTruth.replicate`), and ``X_sd = |X_delta|`` is the per-pixel
+standard deviation of the image estimate):
 
 * ``radiance``: full global illumination (``max_depth`` of the scene, -1 = unlimited);
 * ``direct``: ``max_depth = 2``; ``indirect = radiance - direct`` (same seeds, so in LLVM the two
@@ -16,8 +19,9 @@ whose mean is the image and whose difference estimates its Monte Carlo noise):
   geometry and not on a boundary between two objects, where the AOVs are mixtures),
   ``object_id`` (0 background, k + 1 for shape k; from a one-sample pass so ids are not averaged).
 
-``*_sd`` arrays are the per-pixel standard deviation of the corresponding image estimate.
-Box reconstruction filter, float32 everywhere, seeds from the scene's ``render.seed``.
+``*_sd`` (derived from ``*_delta`` on access) is the per-pixel standard deviation of the
+corresponding image estimate.  Box reconstruction filter, float32 everywhere, seeds from the
+scene's ``render.seed``.
 """
 
 from __future__ import annotations
@@ -35,7 +39,14 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 3  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 5  # bump when the content of a ground truth changes (invalidates caches)
+RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
+AOV_REPLICATED = ("albedo", "normals", "depth")  # AOVs whose half-sample deltas are kept
+
+
+def is_radiance_like(name: str) -> bool:
+    """Whether ``name`` is a rendered (Monte Carlo) pass that has a ``<name>_delta``."""
+    return name in RADIANCE_LIKE or (name.startswith("light") and name.endswith((".radiance", ".direct")))
 
 
 @dataclass
@@ -49,10 +60,40 @@ class GroundTruth:
         try:
             return self.arrays[name]
         except KeyError:
+            if name.endswith("_sd") and f"{name[:-3]}_delta" in self.arrays:
+                return np.abs(self.arrays[f"{name[:-3]}_delta"])
             raise KeyError(f"ground truth has no {name!r}; it has {', '.join(sorted(self.arrays))}") from None
 
     def __contains__(self, name: str) -> bool:
-        return name in self.arrays
+        return name in self.arrays or (name.endswith("_sd") and f"{name[:-3]}_delta" in self.arrays)
+
+    @property
+    def has_replicates(self) -> bool:
+        """Whether the half-sample renders can be rebuilt (every rendered pass has its delta)."""
+        passes = [n for n in self.arrays if is_radiance_like(n)]
+        return bool(passes) and all(f"{n}_delta" in self.arrays for n in passes)
+
+    def replicate(self, half: int) -> GroundTruth:
+        """The ground truth of one half-sample render (``half`` 0 or 1): every rendered pass and the
+        Monte Carlo AOVs (albedo, normals, depth) are replaced by ``X + X_delta`` (half 0) or
+        ``X - X_delta`` (half 1), normals renormalised, ``indirect`` rebuilt from the half's
+        radiance and direct; the masks, ids and metadata are shared.  Its arrays have twice the
+        variance of the full ground truth's."""
+        if half not in (0, 1):
+            raise ValueError(f"half: 0 or 1, got {half!r}")
+        sign = 1.0 if half == 0 else -1.0
+        arrays = dict(self.arrays)
+        for n, a in self.arrays.items():
+            d = self.arrays.get(f"{n}_delta")
+            if d is not None and (is_radiance_like(n) or n in AOV_REPLICATED):
+                arrays[n] = (a + sign * d).astype(np.float32)
+        if "normals_delta" in self.arrays:
+            nrm = arrays["normals"].astype(np.float64)
+            ln = np.linalg.norm(nrm, axis=-1, keepdims=True)
+            arrays["normals"] = np.where(ln > 1e-8, nrm / np.where(ln > 1e-8, ln, 1.0), 0.0).astype(np.float32)
+        if "radiance" in arrays and "direct" in arrays and "indirect" in self.arrays:
+            arrays["indirect"] = arrays["radiance"] - arrays["direct"]
+        return GroundTruth(arrays, dict(self.meta, replicate=half))
 
     @property
     def n_lights(self) -> int:
@@ -102,7 +143,8 @@ class _Renderer:
             self.progress(what)
 
     def render_pair(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
-        """Mean and per-pixel sd of the mean of two half-sample renders with independent seeds."""
+        """Mean ``(a + b) / 2`` and signed half-difference ``(a - b) / 2`` of two half-sample
+        renders with independent seeds (``|(a - b) / 2|`` is the sd of the mean, one-sample)."""
         mi = self.mi
         half = max(1, self.spp // 2)
         # samplers such as multijitter round the count up (with a warning): use what they take
@@ -120,35 +162,53 @@ class _Renderer:
         del scene
         gc.collect()
         self._tick(what)
-        mean = 0.5 * (a + b)
-        sd = 0.5 * np.abs(a - b)  # sd of the mean of two draws, one-sample estimate
-        return mean, sd
+        return 0.5 * (a + b), 0.5 * (a - b)
 
     def aovs(self) -> dict[str, np.ndarray]:
+        """The AOVs (albedo, normals, position, depth, coverage) as the mean of two half-sample
+        renders with their own seeds, with the signed half-differences of albedo, normals and
+        depth (footprint averages are Monte Carlo estimates too: at a curved or tilted surface
+        they move with the samples); plus the object ids and the pure-pixel mask."""
         mi = self.mi
         integ = {"type": "aov", "aovs": "alb:albedo,nn:sh_normal,pp:position,si:shape_index",
                  "cov": {"type": "path", "max_depth": 1}}
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, self.spp, integrator=integ, drop_occluders=False), optimize=False)
-        mi.render(scene, seed=self.seed)
-        ch = _film_arrays(scene)
+        half = max(1, self.spp // 2)
+        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, integrator=integ, drop_occluders=False), optimize=False)
+        half = int(scene.sensors()[0].sampler().sample_count())
         M = np.array(scene.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)
-        obj_avg = self._object_ids(scene, ch["si.I"])  # footprint-averaged: mixed pixels -> -1
+        base = 2 * (self.seed * 1000 + 500)
+        films = []
+        for k in range(2):
+            mi.render(scene, seed=base + k, spp=half)
+            films.append(_film_arrays(scene))
+        obj_avg = [self._object_ids(scene, f["si.I"]) for f in films]  # footprint-averaged: mixed pixels -> -1
         del scene
-        cov = ch["cov.A"]
-        safe = np.where(cov > 0, cov, 1.0)
-        alb = np.stack([ch["alb.R"], ch["alb.G"], ch["alb.B"]], -1) / safe[..., None]
-        nw = np.stack([ch["nn.X"], ch["nn.Y"], ch["nn.Z"]], -1).astype(np.float64) / safe[..., None]
-        pos = np.stack([ch["pp.X"], ch["pp.Y"], ch["pp.Z"]], -1).astype(np.float64) / safe[..., None]
         R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)  # columns: left, up, view direction
-        n_cam = (nw @ R) * np.array([-1.0, 1.0, -1.0])  # x right, y up, z toward the camera
-        norm = np.linalg.norm(n_cam, axis=-1, keepdims=True)
-        n_cam = np.where(norm > 1e-8, n_cam / np.where(norm > 1e-8, norm, 1.0), 0.0)
         origin, view = M[:3, 3], R[:, 2]
-        depth = (pos - origin) @ view
-        covered = cov > 0
-        for a in (alb, n_cam, pos):
-            a[~covered] = 0
-        depth[~covered] = 0
+
+        def derived(ch):
+            cov = ch["cov.A"].astype(np.float64)
+            safe = np.where(cov > 0, cov, 1.0)
+            alb = np.stack([ch["alb.R"], ch["alb.G"], ch["alb.B"]], -1) / safe[..., None]
+            nw = np.stack([ch["nn.X"], ch["nn.Y"], ch["nn.Z"]], -1).astype(np.float64) / safe[..., None]
+            pos = np.stack([ch["pp.X"], ch["pp.Y"], ch["pp.Z"]], -1).astype(np.float64) / safe[..., None]
+            n_cam = (nw @ R) * np.array([-1.0, 1.0, -1.0])  # x right, y up, z toward the camera
+            norm = np.linalg.norm(n_cam, axis=-1, keepdims=True)
+            n_cam = np.where(norm > 1e-8, n_cam / np.where(norm > 1e-8, norm, 1.0), 0.0)
+            depth = (pos - origin) @ view
+            covered = cov > 0
+            for a in (alb, n_cam, pos):
+                a[~covered] = 0
+            depth[~covered] = 0
+            return cov, alb, n_cam, pos, depth
+
+        full = {k: 0.5 * (films[0][k].astype(np.float64) + films[1][k].astype(np.float64)) for k in films[0]}
+        cov, alb, n_cam, pos, depth = derived(full)
+        _, alb_a, n_a, _, d_a = derived(films[0])
+        _, alb_b, n_b, _, d_b = derived(films[1])
+        obj_avg = np.where(obj_avg[0] == obj_avg[1], obj_avg[0], -1)
+        deltas = {"albedo_delta": 0.5 * (alb_a - alb_b), "normals_delta": 0.5 * (n_a - n_b),
+                  "depth_delta": 0.5 * (d_a - d_b)}
         # object ids from a one-sample pass (ids must not be averaged across an edge)
         integ1 = {"type": "aov", "aovs": "si:shape_index"}
         scene = mi.load_dict(scene_dict(mi, self.spec, self.res, 1, integrator=integ1, sampler="independent"), optimize=False)
@@ -165,10 +225,13 @@ class _Renderer:
         # and the footprint-averaged index equals the point-sampled one (no mixture inside the pixel)
         pure = (cov > 0.999) & same & (obj > 0) & (obj_avg == obj)
         self._tick("aovs")
-        return {"albedo": alb.astype(np.float32), "normals": n_cam.astype(np.float32),
-                "position": pos.astype(np.float32), "depth": depth.astype(np.float32),
-                "coverage": cov.astype(np.float32), "mask": pure.astype(np.float32),
-                "object_id": obj}
+        out = {"albedo": alb.astype(np.float32), "normals": n_cam.astype(np.float32),
+               "position": pos.astype(np.float32), "depth": depth.astype(np.float32),
+               "coverage": cov.astype(np.float32), "mask": pure.astype(np.float32),
+               "object_id": obj}
+        out.update({k: np.where(pure[..., None] if v.ndim == 3 else pure, v, 0.0).astype(np.float32)
+                    for k, v in deltas.items()})
+        return out
 
     def _object_ids(self, scene, si: np.ndarray) -> np.ndarray:
         """Map Mitsuba's ``shape_index`` AOV to 0 (background / emitters), k + 1 (shape k), or -1
@@ -192,6 +255,35 @@ class _Renderer:
         return out
 
 
+def relative_noise(image: np.ndarray, delta: np.ndarray) -> np.ndarray:
+    """Per-pixel relative sd ``|delta| / image`` (channel means) over the pixels above 1e-3 of
+    the image's peak (the lit pixels)."""
+    lum = np.asarray(image, np.float64).mean(-1)
+    sd = np.abs(np.asarray(delta, np.float64)).mean(-1)
+    sig = lum > 1e-3 * max(float(lum.max()), 1e-30)
+    return sd[sig] / lum[sig] if sig.any() else np.zeros(1)
+
+
+def noise_summary(arrays: dict, spec) -> dict:
+    """Median and RMS relative sd of the radiance, and of the passes the tasks consume (the
+    per-light passes when the scene has a light set, else radiance and direct)."""
+    rel = relative_noise(arrays["radiance"], arrays["radiance_delta"])
+    if spec.light_set:
+        names = [f"light{k:02d}.{kind}" for k in range(len(spec.light_set)) for kind in ("direct", "radiance")]
+    else:
+        names = ["radiance", "direct"]
+    used = np.concatenate([relative_noise(arrays[n], arrays[f"{n}_delta"]) for n in names])
+    return {
+        "radiance_rel_sd_rms": float(np.sqrt(np.mean(rel ** 2))),
+        "radiance_rel_sd_median": float(np.median(rel)),
+        "inputs_rel_sd_rms": float(np.sqrt(np.mean(used ** 2))),
+        "inputs_rel_sd_median": float(np.median(used)),
+        "inputs": names,
+        "note": "per-pixel sd of the image estimate from two half-sample renders (|a-b|/2), relative to the "
+                "pixel value; pixels above 1e-3 of the peak; inputs = the passes the tasks consume",
+    }
+
+
 def n_passes(spec: S.SceneSpec) -> int:
     """Progress steps of :func:`render_ground_truth`: radiance, direct, two per light of the light
     set, the unoccluded and diffuse-only passes where they apply, and the AOVs."""
@@ -206,14 +298,29 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
     path = {"type": "path", "max_depth": md, "rr_depth": spec.render.rr_depth}
     direct = {"type": "path", "max_depth": 2}
     arrays: dict[str, np.ndarray] = {}
-    arrays["radiance"], arrays["radiance_sd"] = r.render_pair("radiance", 0, integrator=path)
-    arrays["direct"], arrays["direct_sd"] = r.render_pair("direct", 0, integrator=direct)
+    # a direct-only scene (max_depth 2: e.g. an area-source twin, which isolates the source's
+    # effect) renders each pass once: its radiance is its direct light
+    direct_only = md == 2
+    arrays["radiance"], arrays["radiance_delta"] = r.render_pair("radiance", 0, integrator=path)
+    if direct_only:
+        arrays["direct"], arrays["direct_delta"] = arrays["radiance"], arrays["radiance_delta"]
+        r._tick("direct (= radiance)")
+    else:
+        arrays["direct"], arrays["direct_delta"] = r.render_pair("direct", 0, integrator=direct)
     arrays["indirect"] = arrays["radiance"] - arrays["direct"]
     for k, light in enumerate(spec.light_set):
-        arrays[f"light{k:02d}.radiance"], _ = r.render_pair(f"light {k}", 10 + k, integrator=path, lights=[light])
-        arrays[f"light{k:02d}.direct"], _ = r.render_pair(f"light {k} direct", 10 + k, integrator=direct, lights=[light])
+        n = f"light{k:02d}"
+        arrays[f"{n}.radiance"], arrays[f"{n}.radiance_delta"] = r.render_pair(
+            f"light {k}", 10 + k, integrator=path, lights=[light])
+        if direct_only:
+            arrays[f"{n}.direct"], arrays[f"{n}.direct_delta"] = arrays[f"{n}.radiance"], arrays[f"{n}.radiance_delta"]
+            r._tick(f"light {k} direct (= radiance)")
+        else:
+            arrays[f"{n}.direct"], arrays[f"{n}.direct_delta"] = r.render_pair(
+                f"light {k} direct", 10 + k, integrator=direct, lights=[light])
     if spec.has_occluders:
-        unocc, _ = r.render_pair("unoccluded", 0, integrator=direct, drop_occluders=True)
+        unocc, arrays["direct_unoccluded_delta"] = r.render_pair("unoccluded", 0, integrator=direct,
+                                                                 drop_occluders=True)
         with np.errstate(divide="ignore", invalid="ignore"):
             lum_o = arrays["direct"].mean(-1)
             lum_u = unocc.mean(-1)
@@ -221,12 +328,10 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         arrays["unoccluded_fraction"] = np.clip(frac, 0, 1).astype(np.float32)
         arrays["direct_unoccluded"] = unocc
     if spec.has_glossy:
-        arrays["diffuse_only"], _ = r.render_pair("diffuse-only twin", 0, integrator=path, diffuse_only=True)
+        arrays["diffuse_only"], arrays["diffuse_only_delta"] = r.render_pair(
+            "diffuse-only twin", 0, integrator=path, diffuse_only=True)
     arrays.update(r.aovs())
 
-    rad, sd = arrays["radiance"], arrays["radiance_sd"]
-    sig = rad.mean(-1) > 1e-3 * max(float(rad.mean(-1).max()), 1e-30)
-    rel = (sd.mean(-1)[sig] / rad.mean(-1)[sig]) if sig.any() else np.zeros(1)
     choice = current_choice()
     meta = {
         "format": GT_FORMAT,
@@ -234,6 +339,7 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         "scene_hash": spec.content_hash(),
         "description": spec.description,
         "reference": spec.reference,
+        "tags": list(spec.tags),
         "quality": r.quality,
         "resolution": list(r.res),
         "spp": getattr(r, "spp_used", r.spp),
@@ -245,10 +351,6 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         "wall_s": time.perf_counter() - r.t0,
         "cpu_s": time.process_time() - r.cpu0,
         "n_light_set": len(spec.light_set),
-        "noise": {
-            "radiance_rel_sd_rms": float(np.sqrt(np.mean(rel ** 2))),
-            "radiance_rel_sd_median": float(np.median(rel)),
-            "note": "per-pixel sd of the image estimate from two half-sample renders (|a-b|/2), relative to the pixel value; pixels above 1e-3 of the peak",
-        },
+        "noise": noise_summary(arrays, spec),
     }
     return GroundTruth({k: np.ascontiguousarray(v, dtype=np.float32) for k, v in arrays.items()}, meta)

@@ -22,7 +22,18 @@ def write_previews(gt: GroundTruth, out: str | Path) -> list[Path]:
     mask = gt.arrays["coverage"] > 0
     for name, a in sorted(gt.arrays.items()):
         p = out / f"{name}.png"
-        if name in RADIANCE_LIKE or name.startswith("light"):
+        if name.endswith("_delta"):
+            p = out / f"{name[:-6]}_sd.png"
+            base = gt.arrays[name[:-6]]
+            if base.ndim == 3 and name[:-6] != "normals":
+                b = base.mean(-1)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    rel = np.where(b > 1e-3 * b.max(), np.abs(a).mean(-1) / b, np.nan)
+                write_colormap_png(p, rel, label="relative sd (Monte Carlo noise)", cmap="magma")
+            else:
+                sd = np.linalg.norm(a, axis=-1) if a.ndim == 3 else np.abs(a)
+                write_colormap_png(p, sd, label="sd (Monte Carlo noise)", cmap="magma", mask=mask)
+        elif name in RADIANCE_LIKE or name.startswith("light"):
             write_preview(p, np.maximum(a, 0), exposure=exposure)
         elif name == "albedo":
             write_preview(p, a, exposure=1.0)
@@ -30,11 +41,6 @@ def write_previews(gt: GroundTruth, out: str | Path) -> list[Path]:
             write_normals_png(p, a, mask)
         elif name == "depth":
             write_colormap_png(p, a, label="depth along the view axis", mask=mask)
-        elif name.endswith("_sd"):
-            base = gt.arrays[name[:-3]].mean(-1)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                rel = np.where(base > 1e-3 * base.max(), a.mean(-1) / base, np.nan)
-            write_colormap_png(p, rel, label="relative sd (Monte Carlo noise)", cmap="magma")
         elif name == "unoccluded_fraction":
             write_colormap_png(p, a, label="unoccluded fraction", cmap="gray", vmin=0, vmax=1)
         elif name == "object_id":

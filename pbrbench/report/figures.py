@@ -16,8 +16,8 @@ import re
 import numpy as np
 
 MAX_SIDE = 160          # images larger than this are box-downsampled (integer factor) for the report
-PLOT_SIZE = (4.6, 3.2)
-DPI = 80
+PLOT_SIZE = (7.0, 4.4)
+DPI = 90
 
 
 def slug(text: str, n: int = 60) -> str:
@@ -163,7 +163,7 @@ def plot_png(name: str, plot: dict) -> bytes:
     Optional keys: ``title``, ``logx``, ``logy``, ``kind`` ("line" default, or "scatter").
     """
     fig = _figure(PLOT_SIZE)
-    ax = fig.add_axes((0.14, 0.14, 0.83, 0.76))
+    ax = fig.add_axes((0.11, 0.12, 0.86, 0.78))
     series = _series(plot)
     for label, x, y, style in series:
         if plot.get("kind") == "scatter":
@@ -171,24 +171,24 @@ def plot_png(name: str, plot: dict) -> bytes:
         else:
             ax.plot(x, y, label=label, marker=style.get("marker", "o" if len(y) <= 12 else None),
                     markersize=3, linestyle=style.get("linestyle", "-"), color=style.get("color"))
-    ax.set_xlabel(str(plot.get("xlabel", "")), fontsize=8)
-    ax.set_ylabel(str(plot.get("ylabel", "")), fontsize=8)
-    ax.set_title(str(plot.get("title", name)), fontsize=9)
+    ax.set_xlabel(str(plot.get("xlabel", "")), fontsize=10)
+    ax.set_ylabel(str(plot.get("ylabel", "")), fontsize=10)
+    ax.set_title(str(plot.get("title", name)), fontsize=11)
     if plot.get("logx"):
         ax.set_xscale("log")
     if plot.get("logy"):
         ax.set_yscale("log")
-    ax.tick_params(labelsize=7)
+    ax.tick_params(labelsize=9)
     ax.grid(alpha=0.3)
     if series:
-        ax.legend(fontsize=6, loc="best")
+        ax.legend(fontsize=8, loc="best")
     return _save(fig)
 
 
 def history_png(title: str, runs: list[str], series: dict[str, list[float]], *, ylabel: str = "",
                 marks: list[int] | None = None) -> bytes:
     """Headline metric across runs: one line per algorithm; ``marks`` highlights run indices."""
-    fig = _figure((7.2, 3.0))
+    fig = _figure((10.0, 3.8))
     ax = fig.add_axes((0.09, 0.2, 0.62, 0.7))
     x = list(range(len(runs)))
     for label, y in series.items():
@@ -197,13 +197,13 @@ def history_png(title: str, runs: list[str], series: dict[str, list[float]], *, 
         ax.axvline(m, color="#999", lw=0.8, ls=":")
     step = max(1, len(runs) // 8)
     ax.set_xticks(x[::step])
-    ax.set_xticklabels([r[:15] for r in runs[::step]], rotation=20, fontsize=6, ha="right")
-    ax.set_ylabel(ylabel, fontsize=8)
-    ax.set_title(title, fontsize=9)
-    ax.tick_params(labelsize=7)
+    ax.set_xticklabels([r[:15] for r in runs[::step]], rotation=20, fontsize=8, ha="right")
+    ax.set_ylabel(ylabel, fontsize=10)
+    ax.set_title(title, fontsize=11)
+    ax.tick_params(labelsize=9)
     ax.grid(alpha=0.3)
     if series:
-        ax.legend(fontsize=6, loc="center left", bbox_to_anchor=(1.01, 0.5))
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))
     return _save(fig)
 
 

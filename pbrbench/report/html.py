@@ -1,16 +1,24 @@
-"""The HTML report of a run: one self-contained file (CSS inline, images as base64 PNG).
+"""The HTML report of a run: a small offline site in the run's folder.
+
+``index.html`` (contents, the headline effect tables of every task, failures, the regression
+check, the ground truths' noise, the run's details), one page per task (``task-<name>.html``: its
+headline, all metrics, per-scene rows, and the figures grouped by scene family and condition),
+``history.html`` (the headline metric per task and condition over the stored runs) and, where the
+run has chapter figures, ``gallery.html``.  Images are the PNG files the run saved under
+``figures/`` (and ``history/``), referenced relatively and loaded lazily; ``style.css`` is copied
+beside the pages; nothing refers outside the folder, so it can be zipped and opened anywhere.
 
 It reads only the results store (run metadata, scores, ground-truth noise, history of earlier
-runs) and the figures the run saved under ``<run>/figures/``; it recomputes no score.  Tables
-show means over scenes of stored scores.  Jinja2 autoescaping is on, so scene names,
-descriptions, algorithm names and error messages cannot inject markup.
+runs) and the figures the run saved; it recomputes no score.  Jinja2 autoescaping is on, so scene
+names, descriptions, algorithm names and error messages cannot inject markup.
 """
 
 from __future__ import annotations
 
-import base64
 import json
 import math
+import os
+import re
 from collections import defaultdict
 from pathlib import Path
 
@@ -55,41 +63,44 @@ def _colour(value, lo, hi, better, log) -> str | None:
     return f"hsl({int(round(120 * good))}, 65%, 82%)"
 
 
-def headline_tables(scores: list[dict], info: dict, marks: dict | None = None) -> list[dict]:
-    """Per task: algorithm x condition table of the headline metric (mean over scenes)."""
+def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
+                    geometry: dict | None = None) -> list[dict]:
+    """Per task: the effect table of :func:`pbrbench.report.effects.effect_tables` with display
+    text, colours and regression markers.  The reference column is coloured green (best) to red
+    (worst) across algorithms; an effect is red when it costs accuracy significantly, green when it
+    helps, and greyed when it is within two standard errors of zero."""
+    from pbrbench.report.effects import effect_tables, format_cell
+
     marks = marks or {}
-    by_task = defaultdict(list)
-    for s in scores:
-        by_task[s["task"]].append(s)
     out = []
-    for task in sorted(by_task, key=lambda t: (list(info).index(t) if t in info else 99, t)):
-        ti = info.get(task, {})
-        metric = ti.get("headline_metric") or sorted({s["metric"] for s in by_task[task]})[0]
-        rows = [s for s in by_task[task] if s["metric"] == metric]
-        better = rows[0]["better"] if rows else "lower"
-        order = ti.get("conditions") or ["local", "area", "global"]
-        conds = sorted({s["condition"] for s in rows}, key=lambda c: _cond_sort_key(c, list(order)))
-        alg_order = ti.get("algorithms") or []
-        algs = sorted({s["algorithm"] for s in rows},
-                      key=lambda a: (alg_order.index(a) if a in alg_order else len(alg_order), a))
-        vals = defaultdict(list)
-        for s in rows:
-            vals[(s["algorithm"], s["condition"])].append(s["value"])
-        means = {k: _mean(v) for k, v in vals.items()}
-        finite = [v for v in means.values() if math.isfinite(v)]
+    for t in effect_tables(scores, info, geometry):
+        ref_vals = [r["cells"][0]["value"] for r in t["rows"] if r["cells"][0] is not None]
+        finite = [v for v in ref_vals if math.isfinite(v)]
         lo, hi = (min(finite), max(finite)) if finite else (float("nan"), float("nan"))
         log = bool(finite) and lo > 0 and hi / lo > 10
-        table = []
-        for a in algs:
+        rows = []
+        for r in t["rows"]:
             cells = []
-            for c in conds:
-                v = means.get((a, c))
-                cells.append({"value": v, "text": fmt(v) if v is not None else "", "n": len(vals.get((a, c), [])),
-                              "colour": _colour(v, lo, hi, better, log) if v is not None else None,
-                              "mark": marks.get((task, a, c))})
-            table.append({"algorithm": a, "cells": cells})
-        out.append({"task": task, "metric": metric, "better": better, "conditions": conds, "rows": table,
-                    "description": ti.get("description", "")})
+            for col, c in zip(t["columns"], r["cells"], strict=True):
+                if c is None:
+                    cells.append({"text": "", "value": None, "n": 0, "colour": None, "mark": None, "cls": ""})
+                    continue
+                if not col["effect"]:
+                    colour = _colour(c["value"], lo, hi, t["better"], log)
+                    cls = ""
+                else:
+                    worse = (c["value"] > 0) == (t["better"] == "lower")
+                    colour = None
+                    cls = "ns" if c["insignificant"] else ("cost" if c["significant"] and worse else
+                                                            "gain" if c["significant"] else "")
+                title = f"n = {c['n']} scene(s)" + ("" if col["group"] is None else f", {col['group']}")
+                if col["effect"]:
+                    title += "; " + ("within 2 SE of zero: not an effect" if c["insignificant"] else
+                                     "beyond 2 SE: an effect" if c["significant"] else "no uncertainty estimate")
+                cells.append({"text": format_cell(c), "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
+                              "cls": cls, "title": title, "mark": marks.get((t["task"], r["algorithm"], col["condition"]))})
+            rows.append({"algorithm": r["algorithm"], "cells": cells})
+        out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows))
     return out
 
 
@@ -123,12 +134,21 @@ def metric_tables(scores: list[dict]) -> dict[str, dict]:
 
 
 # ----------------------------------------------------------------------------- figures
-def _data_uri(path: Path) -> str:
-    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+def job_label(manifest: dict) -> str:
+    """A short label: scene family, the swept value, the case, the condition (and the plot)."""
+    scene = manifest.get("scene", "")
+    fam, _, rest = scene.partition("[")
+    params = dict(manifest.get("params", []))
+    parts = [fam, rest.rstrip("]").replace(",", ", ") if rest else "", params.get("label", ""),
+             manifest.get("condition", ""), f"plot: {params['plot']}" if params.get("plot") else ""]
+    return " · ".join(p for p in parts if p)
 
 
 def load_figures(run_dir: Path) -> dict[str, list[dict]]:
-    """Per task, the saved figures of each job (from ``figures/*/manifest.json``)."""
+    """Per task, the saved figures of each job (from ``figures/*/manifest.json``), with paths
+    relative to the run's folder."""
+    from pbrbench.report.effects import match_key
+
     out = defaultdict(list)
     fig_dir = Path(run_dir) / "figures"
     if not fig_dir.is_dir():
@@ -140,26 +160,61 @@ def load_figures(run_dir: Path) -> dict[str, list[dict]]:
             continue
         figs = {"image": [], "error_map": [], "plot": []}
         for f in m.get("figures", []):
-            p = fig_dir / f["file"]
-            if p.is_file():
+            if (fig_dir / f["file"]).is_file():
                 caption = f["name"][len("linear:"):] if f["name"].startswith("linear:") else f["name"]
-                figs.setdefault(f["kind"], []).append({"name": f["name"], "caption": caption, "src": _data_uri(p)})
+                figs.setdefault(f["kind"], []).append({"name": f["name"], "caption": caption,
+                                                       "src": f"figures/{f['file']}"})
         if not any(figs.values()) and not m.get("errors") and not m.get("failures"):
             continue
-        params = ", ".join(f"{k}={v}" for k, v in m.get("params", []))
+        params = "\n".join(f"{k} = {v}" for k, v in m.get("params", []))
         out[m["task"]].append({"scene": m["scene"], "condition": m["condition"], "params": params,
+                               "label": job_label(m), "family": match_key(m["scene"].split("[")[0]),
                                "images": figs["image"], "error_maps": figs["error_map"], "plots": figs["plot"],
                                "errors": m.get("errors", []), "failures": m.get("failures", {})})
     for task in out:
-        out[task].sort(key=lambda j: (j["scene"], j["condition"], j["params"]))
+        out[task].sort(key=lambda j: (j["family"], j["scene"].replace("_area", ""), j["condition"], j["params"]))
     return dict(out)
 
 
-def history_figures(store, run_id: str, info: dict, quality: str) -> list[dict]:
-    """A history plot of each task's headline metric across stored runs of the same quality."""
+CHAPTER = re.compile(r"^(?:linear:)?Figs? (\d+)\.(\d+)")
+
+
+def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
+    """Every figure whose name starts with a chapter figure number (``Fig 1.18 ...``, ``Figs
+    1.4-1.6 ...``), ordered by that number: the chapter gallery."""
+    out = []
+    for task, jobs in figures.items():
+        for j in jobs:
+            for kind in ("plots", "images", "error_maps"):
+                for f in j[kind]:
+                    m = CHAPTER.match(f["name"])
+                    if m:
+                        out.append(dict(f, task=task, job=j["label"], kind=kind, order=(int(m.group(1)), int(m.group(2)))))
+    return sorted(out, key=lambda f: (f["order"], f["name"]))
+
+
+def _anchor(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-") or "x"
+
+
+def by_family(jobs: list[dict], conditions: list[str]) -> list[dict]:
+    """Jobs grouped by scene family (a twin with its family), each group ordered by condition."""
+    groups: dict[str, list] = defaultdict(list)
+    for j in jobs:
+        groups[j["family"]].append(j)
+    order = {c: i for i, c in enumerate(conditions)}
+    return [{"name": f, "anchor": "fig-" + _anchor(f),
+             "jobs": sorted(js, key=lambda j: (order.get(j["condition"], len(order)), j["scene"], j["params"]))}
+            for f, js in sorted(groups.items())]
+
+
+def history_figures(store, run_id: str, info: dict, quality: str, out_dir: Path) -> list[dict]:
+    """One history plot per task and condition of its headline metric (mean over scenes) across
+    the stored runs of the same quality, written under ``<out_dir>/history/``."""
     from pbrbench.report.figures import history_png
 
     out = []
+    (out_dir / "history").mkdir(parents=True, exist_ok=True)
     for task, ti in info.items():
         metric = ti.get("headline_metric")
         if not metric:
@@ -171,30 +226,46 @@ def history_figures(store, run_id: str, info: dict, quality: str) -> list[dict]:
         for r in rows:
             if r["run"] not in runs:
                 runs.append(r["run"])
-        # per run and algorithm: mean over conditions of the per-condition means
-        acc = defaultdict(list)
-        for r in rows:
-            if r["value"] is not None:
-                acc[(r["run"], r["algorithm"])].append(r["value"])
-        algs = sorted({r["algorithm"] for r in rows})
-        series = {a: [(sum(acc[(ru, a)]) / len(acc[(ru, a)])) if acc.get((ru, a)) else None for ru in runs]
-                  for a in algs}
-        marks = [runs.index(run_id)] if run_id in runs else []
-        png = history_png(f"{task}: {metric} (mean over scenes and conditions; {quality})", runs, series,
-                          ylabel=metric, marks=marks)
-        out.append({"task": task, "metric": metric, "n_runs": len(runs),
-                    "src": "data:image/png;base64," + base64.b64encode(png).decode("ascii")})
+        conds = [c for c in ti.get("conditions", []) if any(r["condition"] == c for r in rows)]
+        conds += sorted({r["condition"] for r in rows} - set(conds))
+        for cond in conds:
+            acc = {(r["run"], r["algorithm"]): r["value"] for r in rows if r["condition"] == cond}
+            algs = sorted({a for _, a in acc})
+            series = {a: [acc.get((ru, a)) for ru in runs] for a in algs}
+            marks = [runs.index(run_id)] if run_id in runs else []
+            png = history_png(f"{task}: {metric} under {cond} (mean over scenes; {quality})", runs, series,
+                              ylabel=metric, marks=marks)
+            name = f"history/{_anchor(task)}-{_anchor(cond)}.png"
+            (out_dir / name).write_bytes(png)
+            out.append({"task": task, "metric": metric, "condition": cond, "n_runs": len(runs), "src": name,
+                        "anchor": f"h-{_anchor(task)}-{_anchor(cond)}"})
     return out
 
 
 # ----------------------------------------------------------------------------- the report
-def render_html(context: dict) -> str:
+def _env():
     from jinja2 import Environment, FileSystemLoader, select_autoescape
 
     env = Environment(loader=FileSystemLoader(str(TEMPLATE_DIR)),
                       autoescape=select_autoescape(["html", "htm", "xml"], default=True))
     env.filters["fmt"] = fmt
-    return env.get_template("report.html").render(**context)
+    return env
+
+
+def render_page(template: str, context: dict) -> str:
+    return _env().get_template(template).render(**context)
+
+
+def geometry_of(ground_truths: list[dict]) -> dict[str, str]:
+    """scene -> "concave" / "convex" from the scene files' tags (scenes with neither are left out)."""
+    out = {}
+    for g in ground_truths:
+        tags = set(g.get("tags") or ())
+        if "concave" in tags:
+            out[g["scene"]] = "concave"
+        elif "convex" in tags:
+            out[g["scene"]] = "convex"
+    return out
 
 
 def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
@@ -210,7 +281,7 @@ def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
 
 
 def build_context(store, run_id: str, *, run_dir: Path, status: str | None = None) -> dict:
-    """Everything the template shows, read from ``store`` (a :class:`pbrbench.bench.store.Store`)
+    """Everything the pages show, read from ``store`` (a :class:`pbrbench.bench.store.Store`)
     and the run's figure files; nothing is recomputed (``status``: the status to show, when the
     run is about to take it)."""
     run = store.get_run(run_id)
@@ -218,23 +289,32 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         raise KeyError(run_id)
     if status is not None:
         run["status"] = status
-    scores = [s for s in store.scores(run_id) if s["task"] != "perf"]
-    perf = [s for s in store.scores(run_id) if s["task"] == "perf"]
+    all_scores = store.scores(run_id)
+    scores = [s for s in all_scores if s["task"] != "perf"]
+    perf = [s for s in all_scores if s["task"] == "perf"]
     info = run["config"].get("task_info", {})
     comparison = run.get("comparison")
     marks = markers(comparison)
-    heads = headline_tables(scores, info, marks)
+    gts = store.ground_truths(run_id)
+    heads = headline_tables(scores, info, marks, geometry_of(gts))
     tables = metric_tables(scores)
     figures = load_figures(run_dir)
+    history = history_figures(store, run_id, info, run["quality"], Path(run_dir))
+    head_by_task = {h["task"]: h for h in heads}
     tasks = []
-    for task in [h["task"] for h in heads] + [t for t in figures if t not in {h["task"] for h in heads}]:
-        tasks.append({"name": task, "description": info.get(task, {}).get("description", ""),
-                      "table": tables.get(task), "figures": figures.get(task, [])})
-    gts = store.ground_truths(run_id)
+    for task in [h["task"] for h in heads] + [t for t in figures if t not in head_by_task]:
+        ti = info.get(task, {})
+        hist = next((h["src"] for h in history if h["task"] == task and h["condition"] == ti.get("reference_condition")),
+                    next((h["src"] for h in history if h["task"] == task), None))
+        tasks.append({"name": task, "description": ti.get("description", ""), "headline": head_by_task.get(task),
+                      "table": tables.get(task), "families": by_family(figures.get(task, []), ti.get("conditions", [])),
+                      "n_jobs": len(figures.get(task, [])), "history": hist})
     for g in gts:
         n = g.get("noise") or {}
         g["noise_rms"] = n.get("radiance_rel_sd_rms")
         g["noise_median"] = n.get("radiance_rel_sd_median")
+        g["inputs_rms"] = n.get("inputs_rel_sd_rms")
+        g["inputs_median"] = n.get("inputs_rel_sd_median")
         g["res_text"] = "×".join(str(x) for x in g["resolution"]) if g.get("resolution") else ""
     meta_rows = [("run", run["id"]), ("time (UTC)", run["time"]), ("finished", run.get("finished") or ""),
                  ("status", run["status"]), ("quality", run["quality"]), ("variant", run.get("variant") or ""),
@@ -244,13 +324,16 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
                  ("machine", run.get("machine") or ""),
                  ("configuration", json.dumps({k: v for k, v in run["config"].items() if k != "task_info"}, sort_keys=True)),
                  ("scores", str(len(scores)))]
+    gallery = chapter_gallery(figures)
+    failures = [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
+                for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())]
     return {
         "run": run, "meta_rows": meta_rows, "headlines": heads, "tasks": tasks, "ground_truths": gts,
-        "history": history_figures(store, run_id, info, run["quality"]),
+        "history": history, "nav_tasks": [t["name"] for t in tasks], "gallery": gallery,
+        "has_gallery": bool(gallery),
         "comparison": comparison, "baseline_quality": (comparison or {}).get("baseline_quality"),
-        "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf,
-        "failures": [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
-                     for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())],
+        "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf, "failures": failures,
+        "n_scores": len(scores),
     }
 
 
@@ -263,13 +346,23 @@ def _job_errors(errors: dict[str, str]) -> list[dict]:
     return out
 
 
+def _write(path: Path, text: str):
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text, encoding="utf-8")
+    os.replace(tmp, path)
+
+
 def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None = None) -> Path:
-    """Write ``<out_dir>/index.html`` for ``run_id`` and return its path."""
+    """Write the run's site into ``out_dir`` and return the path of its ``index.html``."""
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
-    html = render_html(build_context(store, run_id, run_dir=out_dir, status=status))
-    p = out_dir / "index.html"
-    tmp = p.with_name("index.html.tmp")
-    tmp.write_text(html, encoding="utf-8")
-    tmp.replace(p)
-    return p
+    ctx = build_context(store, run_id, run_dir=out_dir, status=status)
+    (out_dir / "style.css").write_text((TEMPLATE_DIR / "style.css").read_text(), encoding="utf-8")
+    for t in ctx["tasks"]:
+        _write(out_dir / f"task-{t['name']}.html", render_page("task.html", dict(ctx, t=t, page=f"task-{t['name']}")))
+    _write(out_dir / "history.html", render_page("history.html", dict(ctx, page="history")))
+    if ctx["has_gallery"]:
+        _write(out_dir / "gallery.html", render_page("gallery.html", dict(ctx, page="gallery")))
+    index = out_dir / "index.html"
+    _write(index, render_page("index.html", dict(ctx, page="index")))
+    return index

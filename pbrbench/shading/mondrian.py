@@ -13,6 +13,8 @@ Objects
 - :func:`smooth_shading` -- a random low-frequency positive field.
 - :func:`cast_shadow` -- a multiplicative field with a sharp (or blurred) disc-shaped shadow.
 - :func:`mondrian_scene` -- all of the above composed into ``image = albedo * shading``.
+- :func:`colour_mondrian_scene` -- a colour Mondrian with iso-luminant paint edges under a
+  coloured, spatially varying light (the case that separates colour from grey retinex).
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from scipy import ndimage
 from pbrbench.shading.surfaces import pixel_grid
 
 __all__ = ["mondrian_albedo", "point_source_shading", "smooth_shading", "cast_shadow",
-           "mondrian_scene"]
+           "mondrian_scene", "colour_mondrian_scene"]
 
 
 def _guillotine(shape, n_patches, min_size, rng):
@@ -234,3 +236,56 @@ def mondrian_scene(size: int = 256, *, seed: int = 0, colour: bool = False,
     if colour:
         shading = shading[..., None] * np.asarray(illuminant_colour, float)[None, None, :]
     return {"image": albedo * shading, "albedo": albedo, "shading": shading, "labels": labels}
+
+
+def colour_mondrian_scene(size: int = 256, *, seed: int = 0, n_patches: int = 24,
+                          iso_luminant: float = 0.5, chroma_contrast: float = 0.1,
+                          albedo_range=(0.1, 0.9), light_colour_amplitude: float = 0.25,
+                          shading_amplitude: float = 0.8, shading_frequency: float = 2.0):
+    """A colour Mondrian under a coloured, spatially varying light, with iso-luminant edges.
+
+    Papers are the guillotine partition of :func:`mondrian_albedo`.  A fraction
+    ``iso_luminant`` of them copies the log-luminance (mean of the log channels) of an already
+    painted neighbour and differs from it only in chromaticity (a zero-mean log-RGB offset of
+    RMS ``chroma_contrast``): edges that a luminance threshold cannot see.  The others are
+    drawn log-uniformly in ``albedo_range`` per channel.  The light is a smooth random field
+    (:func:`smooth_shading`, log amplitude ``shading_amplitude``, up to ``shading_frequency``
+    cycles per image: its luminance gradients compete with the weaker paper edges) times a slowly varying colour
+    (a smooth field per channel, log amplitude ``light_colour_amplitude``, normalised to a
+    geometric mean of 1): its chromaticity changes across the image, but slowly.
+
+    Returns
+    -------
+    dict with ``image``, ``albedo``, ``shading`` ((H, W, 3), ``image = albedo * shading``),
+    ``labels`` (H, W) and ``iso_luminant`` (bool per paper: copied a neighbour's luminance).
+    """
+    if not 0 <= iso_luminant <= 1:
+        raise ValueError(f"iso_luminant: must be a fraction in [0, 1], got {iso_luminant!r}")
+    h, w = (size, size) if np.isscalar(size) else tuple(int(s) for s in size)
+    rng = np.random.default_rng(seed)
+    labels = _guillotine((h, w), int(n_patches), max(4, min(h, w) // 16), rng)
+    n = int(labels.max()) + 1
+    adj = _adjacency(labels)
+    llo, lhi = np.log(albedo_range[0]), np.log(albedo_range[1])
+    logv = np.zeros((n, 3))
+    iso = np.zeros(n, bool)
+    for k in range(n):
+        done = [j for j in adj[k] if j < k]
+        if done and rng.random() < iso_luminant:
+            j = done[int(rng.integers(len(done)))]
+            v = rng.normal(size=3)
+            v -= v.mean()
+            v *= chroma_contrast / np.sqrt(np.mean(v * v))
+            logv[k] = logv[j].mean() + v
+            iso[k] = True
+        else:
+            logv[k] = rng.uniform(llo, lhi, 3)
+    albedo = np.exp(logv)[labels]
+    shading = smooth_shading((h, w), seed=seed + 1, log_amplitude=shading_amplitude,
+                             max_frequency=shading_frequency)
+    tint = np.stack([np.log(smooth_shading((h, w), seed=seed + 10 + c, log_amplitude=light_colour_amplitude,
+                                           max_frequency=0.8)) for c in range(3)], axis=-1)
+    tint -= tint.mean(axis=-1, keepdims=True)
+    shading = shading[..., None] * np.exp(tint) * np.array([1.0, 0.9, 0.75])
+    return {"image": albedo * shading, "albedo": albedo, "shading": shading, "labels": labels,
+            "iso_luminant": iso}

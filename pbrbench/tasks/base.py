@@ -53,7 +53,9 @@ class Job:
 class Score:
     """One number: what was measured, on what, by which algorithm, and how long it took.
 
-    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated).
+    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated), from the
+    replicate values ``rep_a``, ``rep_b`` (the two half-sample renders) and ``rep_noise`` (a second
+    seed): :mod:`pbrbench.bench.uncertainty`.
     """
 
     task: str
@@ -68,6 +70,9 @@ class Score:
     better: str = "lower"            # "lower" or "higher": the direction of improvement
     unit: str = ""
     uncertainty: float = float("nan")
+    rep_a: float | None = None
+    rep_b: float | None = None
+    rep_noise: float | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -92,6 +97,22 @@ class JobResult:
     failures: dict[str, str] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class Prediction:
+    """One output file an external program writes per job (``pbrbench export`` / ``evaluate``).
+
+    ``name`` is the file stem (``<name>.exr`` or ``<name>.npy``; ``.png`` also for masks,
+    ``.txt`` for a number); ``shape`` a template: ``"H,W"``, ``"H,W,3"`` (H, W of the job's
+    image), ``"image"`` (the shape of the input ``image``), ``"levels,C"`` or ``"K"`` (free
+    sizes) or ``"scalar"``; ``kind`` ``"float"`` or ``"mask"`` (non-zero = True)."""
+
+    name: str
+    shape: str
+    required: bool = True
+    meaning: str = ""
+    kind: str = "float"
+
+
 class Task:
     """Base class; subclasses set the class attributes and implement the three methods."""
 
@@ -101,6 +122,17 @@ class Task:
     headline_metric: str = ""            # the metric shown in the headline table
     families: tuple[str, ...] = ()       # scene families (library file stems)
     short_families: tuple[str, ...] = ()  # the representative subset of short quality profiles
+
+    reference_condition: str = "local"   # the headline's first column; effects are costs against it
+    notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
+
+    def seed_dependent(self, job: Job) -> bool:
+        """Whether the job's inputs depend on the seed (then its standard error includes a second
+        seed, :mod:`pbrbench.bench.uncertainty`): a noise modifier with a positive level."""
+        from pbrbench.tasks._common import parse_condition
+
+        _, mods = parse_condition(job.condition)
+        return any(v > 0 for k, v in mods.items() if "noise" in k)
 
     def builtin_algorithms(self) -> list:
         """The task's own :class:`pbrbench.registry.Algorithm` entries (from the methods tables)."""
@@ -113,3 +145,32 @@ class Task:
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         """Run ``algorithms`` on job ``job`` with ground truths ``gts`` (scene name -> GroundTruth)."""
         raise NotImplementedError
+
+    # ------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    # ``pbrbench export`` records the arguments run_job passes an algorithm of the main calling
+    # convention and writes them to files; ``pbrbench evaluate`` scores an external program's
+    # files through run_job with an algorithm that returns them, so both see the same inputs.
+    input_names: tuple[str, ...] = ()       # names of the positional arguments of the main convention
+    predictions: tuple[Prediction, ...] = ()  # the files a prediction of one job provides
+
+    def export_jobs(self, quality) -> list[Job]:
+        """The jobs ``pbrbench export`` writes: the scored jobs (plot jobs are left out)."""
+        return [j for j in self.jobs(quality) if j.param("plot") is None]
+
+    def frame_shape(self, inputs: dict) -> tuple[int, int]:
+        """(H, W) of a job's images, from its exported ``inputs`` (default: the mask's shape)."""
+        m = inputs.get("mask")
+        if m is not None and np.ndim(m) == 2:
+            return tuple(np.shape(m))
+        a = np.asarray(inputs[self.input_names[0]])
+        return tuple(a.shape[:2])
+
+    def prediction_output(self, files: dict, inputs: dict):
+        """What the algorithm would have returned, from the prediction ``files`` (name -> array)
+        of one job and its ``inputs``: by default the dict itself."""
+        return dict(files)
+
+    def score_outputs(self, job: Job, gts: dict, files: dict, *, algorithm, seed: int = 0, quality=None):
+        """Score predictions that do not go through the calling convention (e.g. a radiance map
+        where the algorithm returns a response curve), or None to score them through run_job."""
+        return None

@@ -22,7 +22,12 @@ true inverse response, given the bracket as ``truth``: the quantisation/noise fl
 
 Metrics (:mod:`pbrbench.metrics.hdr`): log2 radiance RMSE after the one free global scale, per
 channel, on the brightest and darkest 1 %, ``invalid_fraction``, and the response-curve RMSE
-against the true inverse (``response_rmse``, not for the floor).
+against the true inverse (``response_rmse``, not for the floor).  The radiance errors are scored on
+the pixels the bracket *measures* (in every channel, at least one exposure neither black nor
+saturated); what no exposure measures is a property of the bracket, not of the calibration, and is
+scored separately as ``bracket_coverage`` (the measured fraction; the same for every algorithm).
+Without this, a bracket that misses part of the scene's range (``3x3stops``, ``clipped``) scores
+the guesses made for unmeasured pixels, and the true-response floor can lose to a baseline.
 """
 
 from __future__ import annotations
@@ -34,7 +39,7 @@ from pbrbench.checks import method_options
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
@@ -99,6 +104,13 @@ class HDRTask(Task):
     conditions = CONDITIONS
     headline_metric = "log2_rmse"
     families = SCENES
+    reference_condition = "global+noise0"
+    notes = ("Radiometric calibration does not depend on light transport (the camera sees radiance, "
+             "however it arose), so this task has no local/area/global axis: its conditions are the "
+             "camera's (noise, bracket, clipping), and the reference is the noise-free bracket.")
+
+    def seed_dependent(self, job) -> bool:
+        return True  # the camera's noise and the calibrations' pixel samples follow the seed
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.hdr import CALIBRATION_METHODS
@@ -108,6 +120,48 @@ class HDRTask(Task):
                 Algorithm("floor:true_response", self.name, true_response, kind="floor")]
         return out
 
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("images", "exposure_times")
+    predictions = (
+        Prediction("response", "levels,C", False, "inverse response f^-1(z) per pixel level z (rows) and channel "
+                   "(columns), any scale (divided by its last row); merged by the task like a built-in's"),
+        Prediction("exposure_times", "K", False, "re-estimated exposure times for the merge (with response)"),
+        Prediction("radiance", "H,W,3", False, "the merged linear radiance (scored without response_rmse); "
+                   "give response or radiance"),
+    )
+
+    def frame_shape(self, inputs: dict) -> tuple[int, int]:
+        return tuple(np.shape(inputs["images"])[1:3])
+
+    def prediction_output(self, files: dict, inputs: dict):
+        from pbrbench.infer.hdr import CameraResponse
+
+        if "response" not in files:
+            raise ValueError("prediction: write response (levels x channels) or radiance (H, W, 3)")
+        inv = np.asarray(files["response"], float)
+        inv = inv[:, None] if inv.ndim == 1 else inv
+        times = files.get("exposure_times")
+        return CameraResponse(inv / inv[-1:], inv.shape[0], "external",
+                              None if times is None else np.asarray(times, float).ravel())
+
+    def score_outputs(self, job: Job, gts: dict, files: dict, *, algorithm, seed: int = 0, quality=None):
+        if "radiance" not in files or "response" in files:
+            return None
+        gt = gts[job.scene]
+        rad, mask, _, domain, coverage = self._bracket(job, gt, seed)
+        book = C.ScoreBook(job, C.scene_hash(gt), [algorithm])
+        res = JobResult(job)
+        try:
+            est = C.check_array(files["radiance"], "radiance", rad.shape, where=mask)
+            sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+        except ValueError as e:
+            book.add(algorithm.name, {"failed": 1.0}, 0.0)
+            res.failures[algorithm.name] = C.one_line(e)
+        else:
+            book.add(algorithm.name, dict(sc, bracket_coverage=coverage), 0.0)
+        res.scores = book.scores
+        return res
+
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, ()):
@@ -115,21 +169,33 @@ class HDRTask(Task):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
-        from pbrbench.infer.hdr import merge_hdr
-
-        algorithms = [a for a in algorithms if a.applies(job.condition)]
-        gt = gts[job.scene]
+    @staticmethod
+    def _bracket(job: Job, gt, seed: int):
+        """(radiance, its positive pixels, the simulated bracket, the pixels it measures (in every
+        channel some exposure neither black nor saturated), their fraction)."""
         rad = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
         mask = np.all(rad > 0, axis=-1)
         cam, times = camera_setup(job.condition, rad[mask])
         cap_seed = int(C.job_rng(job, seed).integers(0, 2 ** 31 - 1))
         br = cam.capture(rad, times, seed=cap_seed)
+        top = br.levels - 1
+        measured = np.all(np.any((br.images > 0) & (br.images < top), axis=0), axis=-1)
+        domain = mask & measured
+        return rad, mask, br, domain, float(domain.sum() / max(mask.sum(), 1))
+
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        from pbrbench.infer.hdr import merge_hdr
+
+        algorithms = [a for a in algorithms if a.applies(job.condition)]
+        gt = gts[job.scene]
+        rad, mask, br, domain, coverage = self._bracket(job, gt, seed)
+        times = br.exposure_times
         book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:truth (radiance)"] = C.display(rad)
         k_mid = len(times) // 2
         res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = C.display(br.images[k_mid].astype(float) / (br.levels - 1))
+        res.images["pixels no exposure measures (white)"] = C.display((mask & ~domain).astype(float))
         levels = np.arange(br.levels)
         curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
         shown = set()
@@ -150,17 +216,19 @@ class HDRTask(Task):
                 book.add(alg.name, {"failed": 1.0}, t.seconds)
                 res.failures[alg.name] = err
                 continue
-            sc = hdr_scores(est, rad, mask=mask)
+            sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+            sc["bracket_coverage"] = coverage
             if alg.kind != "floor":
                 sc["response_rmse"] = response_rmse(resp.inverse, br.true_inverse)
                 curves[alg.name] = np.log2(np.maximum(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)], 1e-12))
             book.add(alg.name, sc, t.seconds)
             if alg.kind in ("method", "baseline") and alg.kind not in shown:  # the first of each
                 shown.add(alg.kind)
-                res.images[f"linear:merged: {alg.name}"] = C.display(est / np.exp(np.mean(np.log(est[mask] / rad[mask]))))
+                dom = domain if domain.any() else mask
+                res.images[f"linear:merged: {alg.name}"] = C.display(est / np.exp(np.mean(np.log(est[dom] / rad[dom]))))
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lr = np.log2(C.grey(est) / C.grey(rad))
-                lr = np.where(mask, lr - np.nanmedian(lr[mask]), np.nan)
+                lr = np.where(dom, lr - np.nanmedian(lr[dom]), np.nan)
                 res.error_maps[f"log2 radiance error (stops): {alg.name}"] = C.display_map(lr)
         res.plots["inverse response (green channel)"] = C.profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",

@@ -5,9 +5,12 @@ failure), ``mondrian_folded`` (a fold: interreflection between the papers).  The
 shape whose material is ``paper`` (two panels for the folded one); their fully covered pixels
 (ground-truth ``mask``) are the evaluation domain.
 
-Conditions: ``local`` = the ``direct`` render (nearby source, no interreflection); ``global`` =
-the ``radiance`` render (full interreflection; identical to ``local`` for a flat Mondrian up to
-Monte Carlo noise, different for the folded one).
+Conditions: ``local`` = the ``direct`` render (a nearby point source, no interreflection);
+``area`` = the ``direct`` render of the ``*_area`` twin (the point source replaced by a small area
+source with the same irradiance at the centre: softer cast shadows); ``global`` = the
+``radiance`` render (full interreflection; identical to ``local`` for a flat Mondrian up to Monte
+Carlo noise, different for the folded one and where the rod of ``mondrian_shadow`` reflects light
+onto the paper).
 
 Ground truth: reflectance = the albedo AOV, shading = image / albedo.  Grey scenes (albedo equal
 in every channel) are scored on the channel mean; colour scenes on RGB.
@@ -31,7 +34,7 @@ import numpy as np
 from pbrbench.metrics.lightness import lightness_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded")
 MEAN_LIGHTNESS = 0.5   # the mean of the library's papers, drawn uniformly in [0.1, 0.9]
@@ -89,10 +92,10 @@ class LightnessTask(Task):
     name = "lightness"
     description = ("Retinex (Land & McCann 1971; Horn 1974; Blake 1985) on rendered Mondrians: "
                    "reflectance vs the albedo AOV, with a cast shadow and a fold as the known failures.")
-    conditions = ("local", "global")
+    conditions = ("local", "area", "global")
     headline_metric = "lmse"
     families = FAMILIES
-    short_families = ("mondrian_grey", "mondrian_shadow")
+    short_families = ("mondrian_grey", "mondrian_shadow", "mondrian_folded")
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.lightness import METHODS
@@ -106,14 +109,37 @@ class LightnessTask(Task):
                 Algorithm("baseline:uniform_reflectance", self.name, uniform_reflectance, kind="baseline")]
         return out
 
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("image",)
+    predictions = (
+        Prediction("reflectance", "image", False, "reflectance (any scale); missing: image / shading"),
+        Prediction("shading", "image", False, "shading (any scale); missing: image / reflectance"),
+    )
+
+    def prediction_output(self, files: dict, inputs: dict):
+        out = dict(files)
+        if not out:
+            raise ValueError("prediction: write reflectance or shading (or both)")
+        image = np.asarray(inputs["image"], float)
+        for want, have in (("reflectance", "shading"), ("shading", "reflectance")):
+            if want not in out:
+                h = np.asarray(out[have], float)
+                out[want] = np.divide(image, h, out=np.zeros_like(image), where=h > 0)
+        return out
+
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            for s in C.family_scenes(fam):
+            twins = C.family_scenes(f"{fam}_area")
+            for i, s in enumerate(C.family_scenes(fam)):
                 paper = tuple(i + 1 for i, sh in enumerate(s.shapes) if sh.material == "paper")
                 p = (("paper_ids", paper),)
-                for cond in self.conditions:
-                    out.append(Job(self.name, s.name, cond, p))
+                out.append(Job(self.name, s.name, "local", p))
+                out.append(Job(self.name, s.name, "global", p))
+                if i < len(twins):
+                    tw = twins[i]
+                    tp = tuple(k + 1 for k, sh in enumerate(tw.shapes) if sh.material == "paper")
+                    out.append(Job(self.name, tw.name, "area", (("paper_ids", tp),)))
         return out
 
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:

@@ -40,7 +40,7 @@ import numpy as np
 from pbrbench.metrics.normals import albedo_scores, height_scores, normal_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove")
 REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
@@ -132,6 +132,19 @@ class PhotometricStereoTask(Task):
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
+        return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("images", "lights")
+    predictions = (
+        Prediction("normals", "H,W,3", True, "unit normals in the camera frame (x right, y up, z toward the camera)"),
+        Prediction("albedo", "H,W", False, "albedo as the method recovers it (missing: no albedo scores)"),
+        Prediction("valid", "H,W", False, "pixels with an estimate (missing: where the normal is non-zero)", "mask"),
+    )
+
+    def prediction_output(self, files: dict, inputs: dict):
+        out = dict(files)
+        out.setdefault("albedo", np.zeros(self.frame_shape(inputs)))   # zero albedo: albedo scores skipped
         return out
 
     # --------------------------------------------------------------------------- helpers

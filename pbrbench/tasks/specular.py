@@ -35,7 +35,7 @@ import numpy as np
 from pbrbench.metrics.specular import specular_mask_from_twin, specular_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("specular_sphere", "specular_shapes")
 NOISE = 0.01
@@ -61,6 +61,11 @@ class SpecularTask(Task):
                    "§1.1 recipe), scored against the diffuse-only twin render.")
     conditions = ("global", f"global+noise{NOISE:g}")
     headline_metric = "inside_rel"
+    reference_condition = "global"
+    notes = ("No local/area axis: the chapter's recipe (find small bright blobs, fill them from their "
+             "surroundings) does not model light transport, and an area source's glossy lobe is not a "
+             "small blob, so a direct-only or area-source twin would measure the detector's size prior, "
+             "not the cost of an effect. The noise column is the cost of camera noise.")
     families = FAMILIES
     short_families = ("specular_sphere",)
 
@@ -71,6 +76,13 @@ class SpecularTask(Task):
         out += [Algorithm(n + ORACLE, self.name, fn, kind="floor", interface="fill") for n, fn in FILL_METHODS.items()]
         out.append(Algorithm("baseline:no_removal", self.name, no_removal, kind="baseline"))
         return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("image",)
+    predictions = (
+        Prediction("mask", "H,W", True, "the detected specular pixels", "mask"),
+        Prediction("removed", "image", True, "the image with the highlights removed (linear radiance)"),
+    )
 
     def jobs(self, quality) -> list[Job]:
         out = []

@@ -1,6 +1,6 @@
-"""Proof that the ground truth is right (issue 3, proof 1-5), at draft quality, through the render cache.
+"""Proof that the ground truth is right (`pbrbench validate`), at draft quality, through the render cache.
 
-Each test renders small validation scenes (pbrbench.validate) and asserts every record meets its
+Each test renders small validation scenes (pbrbench.render.proofs) and asserts every record meets its
 bound: closed forms (Lambert's law on a sphere, Lambert's formula for a polygonal source, the
 integrating sphere, analytic normals and depth) and statistical comparisons of independent renders.
 """
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from pbrbench import validate as V
+from pbrbench.render import proofs as V
 from pbrbench.render.cache import RenderCache
 
 

@@ -1,10 +1,12 @@
-"""The HTML report: one self-contained file whose images all decode, with the expected headline
-rows and every user-supplied string escaped; checked by parsing and, where Chromium is
-installed (Debian package `chromium`), in a headless browser."""
+"""The HTML report: a small offline site (index, one page per task, history) whose every image
+decodes and every link resolves, with the expected headline rows and every user-supplied string
+escaped; checked by parsing and, where Chromium is installed (Debian package `chromium`), in a
+headless browser, which also saves a screenshot of the index."""
 
-import base64
-import io
+from __future__ import annotations
+
 import json
+import os
 import shutil
 import subprocess
 from html.parser import HTMLParser
@@ -20,6 +22,7 @@ from pbrbench.report.html import headline_tables, write_report
 from tests.fakes import EVIL, FakeTask, fake_run
 
 CHROMIUM = "/usr/bin/chromium"
+ARTIFACTS = Path(__file__).resolve().parents[2] / "reports" / "artifacts"
 
 
 class EvilTask(FakeTask):
@@ -29,19 +32,21 @@ class EvilTask(FakeTask):
 class Parsed(HTMLParser):
     def __init__(self):
         super().__init__()
-        self.imgs, self.links, self.scripts, self.headline_rows, self.styles = [], [], 0, [], 0
+        self.imgs, self.links, self.anchors, self.ids, self.scripts, self.headline_rows = [], [], [], set(), 0, []
         self._table = None
 
     def handle_starttag(self, tag, attrs):
         a = dict(attrs)
+        if "id" in a:
+            self.ids.add(a["id"])
         if tag == "img":
             self.imgs.append(a)
+        elif tag == "a" and "href" in a:
+            self.anchors.append(a["href"])
         elif tag in ("link", "iframe", "object", "embed"):
             self.links.append(a)
         elif tag == "script":
             self.scripts += 1
-        elif tag == "style":
-            self.styles += 1
         elif tag == "table" and "headline" in (a.get("class") or ""):
             self._table = a.get("data-task")
         elif tag == "tr" and self._table and "data-algorithm" in a:
@@ -52,6 +57,12 @@ class Parsed(HTMLParser):
             self._table = None
 
 
+def parse(path: Path) -> Parsed:
+    p = Parsed()
+    p.feed(path.read_text())
+    return p
+
+
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("report")
@@ -59,28 +70,39 @@ def report(tmp_path_factory):
     return tmp, o
 
 
-def test_self_contained_and_images_decode(report):
+def test_the_site_is_offline_every_image_decodes_and_every_link_resolves(report):
     _, o = report
-    html = o.report.read_text()
-    p = Parsed()
-    p.feed(html)
-    assert p.scripts == 0 and p.links == [] and p.styles == 1  # CSS inline, nothing fetched
-    assert "http://" not in html and "https://" not in html
-    # 2 jobs per scene x 2 scenes: 3 images + 2 error maps + 1 plot each, plus 1 history plot
-    assert len(p.imgs) == 4 * 6 + 1
-    for img in p.imgs:
-        src = img["src"]
-        assert src.startswith("data:image/png;base64,"), src[:40]
-        im = Image.open(io.BytesIO(base64.b64decode(src.split(",", 1)[1], validate=True)))
-        im.load()
-        assert im.format == "PNG" and im.width > 0 and im.height > 0
+    site = o.report.parent
+    pages = sorted(site.glob("*.html"))
+    assert {p.name for p in pages} == {"index.html", "task-fake.html", "history.html"}
+    assert o.report.stat().st_size < 3e6
+    n_img = 0
+    for page in pages:
+        html = page.read_text()
+        p = parse(page)
+        assert p.scripts == 0 and "http://" not in html and "https://" not in html
+        assert p.links == [{"rel": "stylesheet", "href": "style.css"}] and (site / "style.css").is_file()
+        for img in p.imgs:
+            assert not img["src"].startswith(("data:", "/", "http")), img["src"]
+            with Image.open(site / img["src"]) as im:
+                im.load()
+                assert im.format == "PNG" and im.width > 0 and im.height > 0
+            n_img += 1
+        for href in p.anchors:
+            target, _, frag = href.partition("#")
+            doc = site / target if target else page
+            assert doc.is_file(), (page.name, href)
+            if frag:
+                assert frag in parse(doc).ids, (page.name, href)
+    # 4 jobs x (3 images + 2 error maps + 1 plot) on the task page, plus the history plots
+    task = parse(site / "task-fake.html")
+    assert len(task.imgs) == 4 * 6 + 1
+    assert n_img >= 4 * 6 + 2
 
 
 def test_headline_rows_and_regression_markers(report):
     tmp, o = report
-    p = Parsed()
-    p.feed(o.report.read_text())
-    assert p.headline_rows == [("fake", "good"), ("fake", "baseline:zero")]
+    assert parse(o.report).headline_rows == [("fake", "good"), ("fake", "baseline:zero")]
     # a baseline that the run beats for "good" and misses for "baseline:zero"
     entries = {}
     for s in o.scores:
@@ -96,27 +118,32 @@ def test_headline_rows_and_regression_markers(report):
         st.set_comparison(o.run_id, dict(comparison_record(comp), baseline_quality="draft"))
         path = write_report(st, o.run_id, out_dir=tmp / "again")
     html = path.read_text()
-    assert html.count('class="mark-regression" title') == 2   # baseline:zero x (local, global)
-    assert html.count('class="mark-improvement" title') == 2  # good x (local, global)
+    assert html.count('class="mark-regression" title') == 2   # baseline:zero x (local, global - local)
+    assert html.count('class="mark-improvement" title') == 2  # good x (local, global - local)
     assert "Regression check" in html
 
 
 def test_user_strings_are_escaped(report):
     _, o = report
-    html = o.report.read_text()
-    assert EVIL not in html
-    assert "&lt;script&gt;alert(" in html
-    assert html.count("&lt;script&gt;") >= 3  # task description, scene names, image caption
+    for page in o.report.parent.glob("*.html"):
+        html = page.read_text()
+        assert EVIL not in html, page.name
+    assert "&lt;script&gt;alert(" in (o.report.parent / "task-fake.html").read_text()
 
 
-def test_headline_aggregates_stored_scores():
-    scores = [{"task": "t", "scene": s, "condition": c, "algorithm": "a", "metric": "m", "value": v, "better": "lower"}
-              for s, c, v in (("x", "local", 1.0), ("y", "local", 3.0), ("x", "global", 5.0))]
-    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "conditions": ["local", "area", "global"]}})
-    assert h["conditions"] == ["local", "global"]
-    cells = h["rows"][0]["cells"]
-    assert [c["value"] for c in cells] == [2.0, 5.0] and [c["n"] for c in cells] == [2, 1]
-    assert cells[0]["colour"].startswith("hsl(120") and cells[1]["colour"].startswith("hsl(0")
+def test_headline_is_the_reference_and_the_cost_of_each_effect_on_matched_scenes():
+    scores = [{"task": "t", "scene": s, "condition": c, "algorithm": a, "metric": "m", "value": v, "better": "lower",
+               "uncertainty": 0.1, "scene_hash": s}
+              for a, s, c, v in (("a", "x", "local", 1.0), ("a", "y", "local", 3.0), ("a", "x", "global", 5.0),
+                                 ("b", "x", "local", 2.0), ("b", "y", "local", 1.0), ("b", "x", "global", 2.1))]
+    (h,) = headline_tables(scores, {"t": {"headline_metric": "m", "conditions": ["local", "area", "global"],
+                                          "reference_condition": "local"}})
+    assert h["conditions"] == ["local", "global − local"]
+    (ra, rb) = h["rows"]
+    assert [c["value"] for c in ra["cells"]] == [2.0, 4.0] and [c["n"] for c in ra["cells"]] == [2, 1]
+    assert ra["cells"][1]["cls"] == "cost" and rb["cells"][1]["cls"] == "ns"  # 0.1 is within 2 SE
+    assert ra["cells"][0]["text"].startswith("2 ±") and rb["cells"][1]["text"].startswith("+0.1")
+    assert rb["cells"][0]["colour"].startswith("hsl(120") and ra["cells"][0]["colour"].startswith("hsl(0,")
 
 
 def test_report_cli_rerenders_from_store_only(report, tmp_path):
@@ -126,43 +153,60 @@ def test_report_cli_rerenders_from_store_only(report, tmp_path):
     from pbrbench.cli.main import main
 
     assert main(["report", o.run_id, "--out", str(out), "--store", str(tmp / "h.sqlite")]) == 0
-    p1, p2 = Parsed(), Parsed()
-    p1.feed(o.report.read_text())
-    p2.feed((out / o.run_id / "index.html").read_text())
-    assert p2.headline_rows == p1.headline_rows and len(p2.imgs) == len(p1.imgs)
+    p1, p2 = parse(o.report), parse(out / o.run_id / "index.html")
+    assert p2.headline_rows == p1.headline_rows
+    assert len(parse(out / o.run_id / "task-fake.html").imgs) == len(parse(o.report.parent / "task-fake.html").imgs)
     assert json.loads((out / o.run_id / "scores.json").read_text())["run"]["id"] == o.run_id
 
 
 CHECK_JS = """<script>
 window.addEventListener('error', e => { (window.__errs = window.__errs || []).push(String(e.message || e.type)); }, true);
 window.addEventListener('load', () => {
-  // the load event waits for every image: a broken one is complete with naturalWidth 0
-  const imgs = Array.from(document.images), bad = [];
-  imgs.forEach((im, i) => { if (!im.complete || !im.naturalWidth || !im.naturalHeight) bad.push(i); });
-  const rows = Array.from(document.querySelectorAll('table.headline tr[data-algorithm]'))
-    .map(r => r.closest('table').dataset.task + '/' + r.dataset.algorithm);
-  document.body.setAttribute('data-check', JSON.stringify({n: imgs.length, bad: bad, rows: rows, errors: window.__errs || []}));
+  const imgs = Array.from(document.images);
+  imgs.forEach(im => { im.loading = 'eager'; });
+  setTimeout(() => {
+    const bad = [];
+    imgs.forEach((im, i) => { if (!im.complete || !im.naturalWidth || !im.naturalHeight) bad.push(im.getAttribute('src')); });
+    const links = Array.from(document.querySelectorAll('a[href^="#"]')).map(a => a.getAttribute('href').slice(1))
+      .filter(id => !document.getElementById(id));
+    const rows = Array.from(document.querySelectorAll('table.headline tr[data-algorithm]'))
+      .map(r => r.closest('table').dataset.task + '/' + r.dataset.algorithm);
+    document.body.setAttribute('data-check', JSON.stringify({n: imgs.length, bad: bad, links: links, rows: rows,
+                                                             errors: window.__errs || []}));
+  }, 500);
 });
 </script>"""
 
+FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
+         "--disable-background-networking", "--disable-component-update", "--disable-sync"]
+
 
 @pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"{CHROMIUM} not installed (Debian package `chromium`)")
-def test_headless_chromium(report, tmp_path):
+def test_headless_chromium_every_page_loads_clean(report, tmp_path):
     _, o = report
-    html = o.report.read_text()
-    page = tmp_path / "check.html"
-    # the checker goes first in <head>, so it sees every error of the report's own content
-    page.write_text(html.replace("<head>", "<head>" + CHECK_JS, 1))
-    p = subprocess.run([CHROMIUM, "--headless", "--no-sandbox", "--disable-gpu", "--enable-logging=stderr", "--v=0",
-                        "--virtual-time-budget=10000", "--dump-dom", page.as_uri()],
-                       capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr[-2000:]
-    marker = 'data-check="'
-    assert marker in p.stdout, "the page did not finish loading"
-    raw = p.stdout.split(marker, 1)[1].split('"', 1)[0]
-    check = json.loads(raw.replace("&quot;", '"').replace("&amp;", "&"))
-    assert check["n"] == 25 and check["bad"] == []
-    assert check["rows"] == ["fake/good", "fake/baseline:zero"]
-    assert check["errors"] == []
-    console = [ln for ln in p.stderr.splitlines() if "CONSOLE" in ln]
-    assert console == [], console
+    site = tmp_path / "site"
+    shutil.copytree(o.report.parent, site)
+    for page in sorted(site.glob("*.html")):
+        # the checker goes first in <head>, so it sees every error of the page's own content
+        page.write_text(page.read_text().replace("<head>", "<head>" + CHECK_JS, 1))
+        p = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile'}", "--enable-logging=stderr",
+                            "--v=0", "--virtual-time-budget=10000", "--dump-dom", page.as_uri()],
+                           capture_output=True, text=True, timeout=120)
+        assert p.returncode == 0, p.stderr[-2000:]
+        marker = 'data-check="'
+        assert marker in p.stdout, f"{page.name} did not finish loading"
+        raw = p.stdout.split(marker, 1)[1].split('"', 1)[0]
+        check = json.loads(raw.replace("&quot;", '"').replace("&amp;", "&"))
+        assert check["bad"] == [] and check["links"] == [] and check["errors"] == [], (page.name, check)
+        console = [ln for ln in p.stderr.splitlines() if "CONSOLE" in ln]
+        assert console == [], (page.name, console)
+        if page.name == "index.html":
+            assert check["rows"] == ["fake/good", "fake/baseline:zero"]
+        if page.name == "task-fake.html":
+            assert check["n"] == 25
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    shot = ARTIFACTS / "report-index.png"
+    p = subprocess.run([CHROMIUM, *FLAGS, f"--user-data-dir={tmp_path / 'profile2'}", "--window-size=1400,1800",
+                        f"--screenshot={shot}", o.report.as_uri()], capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0 and shot.is_file() and shot.stat().st_size > 10_000, p.stderr[-2000:]
+    os.utime(shot)

@@ -138,3 +138,15 @@ def test_albedo_sweeps(family):
     names = [s.name for s in specs]
     assert names == [f"{family}[albedo={a:g}]" for a in (0.1, 0.3, 0.5, 0.7, 0.9)]
     assert all("paint" in s.materials for s in specs)
+
+
+@pytest.mark.parametrize("family", AREA_TWINS + ["mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded"])
+def test_area_twins_differ_only_in_their_lights_and_render_direct_light(family):
+    d = load_scene_file(next(f for f in library_files() if f.stem == family))
+    a = load_scene_file(next(f for f in library_files() if f.stem == family + "_area"))
+    assert len(d) == len(a)
+    for sd, sa in zip(d, a, strict=True):
+        assert sd.shapes == sa.shapes and sd.materials == sa.materials
+        assert sd.camera.half_width == sa.camera.half_width and sd.render.resolution == sa.render.resolution
+        assert sa.render.max_depth == 2 and {li.type for li in sa.lights + sa.light_set} == {"area"}
+        assert ("convex" in sd.tags) == ("convex" in sa.tags) and ("concave" in sd.tags) == ("concave" in sa.tags)

@@ -21,7 +21,9 @@ dispatches by name:
   exposure ratios.
 
 Merge methods (:mod:`pbrbench.infer.hdr.merge`): :data:`MERGE_METHODS` and the dispatcher
-:func:`merge_hdr`; ``"debevec1997"`` (:func:`merge_debevec1997`) is the default.
+:func:`merge_hdr`; ``"granados2010"`` (:func:`merge_granados2010`, the linear-domain
+inverse-variance estimator with the camera noise model) is the default, ``"debevec1997"``
+(:func:`merge_debevec1997`, the log-domain average) the one every version before it used.
 
 Adding a calibration is one new module in this package (named after its paper, built on
 :mod:`pbrbench.infer.hdr._common`) plus one line in :data:`CALIBRATION_METHODS`.
@@ -43,7 +45,13 @@ from __future__ import annotations
 from pbrbench.checks import call_method
 from pbrbench.infer.hdr._common import CALIBRATION_WEIGHTINGS
 from pbrbench.infer.hdr.debevec1997 import calibrate_debevec1997
-from pbrbench.infer.hdr.merge import MERGE_METHODS, MERGE_WEIGHTINGS, merge_debevec1997, merge_hdr
+from pbrbench.infer.hdr.merge import (
+    MERGE_METHODS,
+    MERGE_WEIGHTINGS,
+    merge_debevec1997,
+    merge_granados2010,
+    merge_hdr,
+)
 from pbrbench.infer.hdr.mitsunaga1999 import calibrate_mitsunaga1999
 from pbrbench.infer.hdr.response import CameraResponse
 from pbrbench.infer.hdr.robertson2003 import calibrate_robertson2003
@@ -59,6 +67,7 @@ __all__ = [
     "calibrate_response",
     "calibrate_robertson2003",
     "merge_debevec1997",
+    "merge_granados2010",
     "merge_hdr",
 ]
 

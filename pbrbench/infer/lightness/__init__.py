@@ -16,6 +16,11 @@ Image methods share the signature ``fn(image, *, <own options>) -> (reflectance,
   anchor rule; options ``threshold``, ``anchor``, ``mean_lightness``, ``mask``, ``edge_rule``,
   ``edge_illumination``, ``min_value``, ``brightest_percentile``, ``solver``.
 
+- ``"grosse2009"``: :func:`lightness_grosse2009` (:mod:`~pbrbench.infer.lightness.grosse2009`),
+  colour retinex: a log-gradient is paint when its luminance part exceeds ``threshold`` or its
+  chromaticity part exceeds ``chromaticity_threshold`` (Grosse et al. 2009, after Funt et al.
+  1992); :func:`select_thresholds_hold_one_out` chooses both on a data set by hold-one-out.
+
 Profiles (1-D signals, not images; not in :data:`METHODS`): :func:`lightness_1d_horn1974`
 (:mod:`~pbrbench.infer.lightness.horn1974`), the chapter's Fig. 1.11.
 
@@ -36,6 +41,7 @@ References
   Vision, Graphics, and Image Processing 32(3), 1985.
 - R. Grosse, M. K. Johnson, E. H. Adelson and W. T. Freeman, "Ground truth dataset and
   baseline evaluations for intrinsic image algorithms", ICCV 2009.
+- B. V. Funt, M. S. Drew and M. Brockington, "Recovering shading from color images", ECCV 1992.
 """
 
 from __future__ import annotations
@@ -43,6 +49,7 @@ from __future__ import annotations
 from pbrbench.checks import call_method
 from pbrbench.infer.lightness._common import ANCHORS
 from pbrbench.infer.lightness.blake1985 import EDGE_ILLUMINATION, EDGE_RULES, lightness_blake1985
+from pbrbench.infer.lightness.grosse2009 import lightness_grosse2009, select_thresholds_hold_one_out
 from pbrbench.infer.lightness.horn1974 import lightness_1d_horn1974
 
 __all__ = [
@@ -53,12 +60,15 @@ __all__ = [
     "lightness",
     "lightness_1d_horn1974",
     "lightness_blake1985",
+    "lightness_grosse2009",
     "retinex",
     "retinex_1d",
+    "select_thresholds_hold_one_out",
 ]
 
 METHODS = {
     "blake1985": lightness_blake1985,
+    "grosse2009": lightness_grosse2009,
 }
 
 retinex = lightness_blake1985

@@ -28,6 +28,10 @@ Methods
   unsaturated lights.
 - ``"ikehata2012_l1"``: :func:`photometric_stereo_ikehata2012_l1`, robust L1 fit that treats
   highlights and residual shadows as sparse outliers.
+- ``"ikehata2012_sbl"``: :func:`photometric_stereo_ikehata2012_sbl`, sparse Bayesian learning
+  of the outliers (evidence maximisation; close to counting them).
+- ``"wu2010"``: :func:`photometric_stereo_wu2010`, low-rank matrix completion and recovery
+  (RPCA by inexact ALM) of the observation matrix, then least squares on the trusted entries.
 
 Baselines (:data:`BASELINES`, not methods): ``"naive_lstsq_all_lights"``,
 :func:`photometric_stereo_naive_lstsq`, one least-squares solve with every light.
@@ -38,6 +42,8 @@ References
   Optical Engineering 19(1), 1980.
 - S. Ikehata, D. Wipf, Y. Matsushita and K. Aizawa, "Robust photometric stereo using sparse
   regression", CVPR 2012.
+- L. Wu, A. Ganesh, B. Shi, Y. Matsushita, Y. Wang and Y. Ma, "Robust photometric stereo via
+  low-rank matrix completion and recovery", ACCV 2010.
 """
 
 from __future__ import annotations
@@ -46,7 +52,9 @@ from pbrbench.checks import call_method
 from pbrbench.infer.photometric_stereo._common import PhotometricStereoResult
 from pbrbench.infer.photometric_stereo.baselines import BASELINES, photometric_stereo_naive_lstsq
 from pbrbench.infer.photometric_stereo.ikehata2012 import photometric_stereo_ikehata2012_l1
+from pbrbench.infer.photometric_stereo.ikehata2012_sbl import photometric_stereo_ikehata2012_sbl
 from pbrbench.infer.photometric_stereo.woodham1980 import photometric_stereo_woodham1980
+from pbrbench.infer.photometric_stereo.wu2010 import photometric_stereo_wu2010
 
 __all__ = [
     "BASELINES",
@@ -54,13 +62,17 @@ __all__ = [
     "PhotometricStereoResult",
     "photometric_stereo",
     "photometric_stereo_ikehata2012_l1",
+    "photometric_stereo_ikehata2012_sbl",
     "photometric_stereo_naive_lstsq",
     "photometric_stereo_woodham1980",
+    "photometric_stereo_wu2010",
 ]
 
 METHODS = {
     "woodham1980": photometric_stereo_woodham1980,
     "ikehata2012_l1": photometric_stereo_ikehata2012_l1,
+    "ikehata2012_sbl": photometric_stereo_ikehata2012_sbl,
+    "wu2010": photometric_stereo_wu2010,
 }
 
 

@@ -21,6 +21,8 @@ from pbrbench.infer.photometric_stereo._common import (
 
 __all__ = ["photometric_stereo_ikehata2012_l1"]
 
+VERSION = "2"  # outlier rejection never leaves fewer than min_lights inliers
+
 
 def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                                       saturation: float | None = None, min_lights: int = 3,
@@ -38,8 +40,9 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     over pixels, starting from the least-squares solution.  Measurements whose L1 residual
     exceeds 5 robust standard deviations of the noise (1.4826 times the median absolute
     residual over the image, from the residuals the fit did not interpolate exactly) are then
-    dropped as outliers (they do not count in ``n_used``) and ``g`` is refitted by least
-    squares on the inliers.
+    dropped as outliers (they do not count in ``n_used``; a pixel that would keep fewer than
+    ``min_lights`` keeps all its used lights) and ``g`` is refitted by least squares on the
+    inliers.
 
     Parameters
     ----------
@@ -89,7 +92,12 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     # through >= 3 measurements, whose zero residuals say nothing about the noise).
     free = used & (r > 1e3 * delta)
     sigma = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
-    used &= r <= np.maximum(5.0 * sigma, 1e-6 * scale)
+    inl = used & (r <= np.maximum(5.0 * sigma, 1e-6 * scale))
+    # never reject below min_lights: a pixel left with fewer inliers keeps its used lights
+    # (on near-noise-free renders the image-wide sigma is tiny and the rejection would leave
+    # 1-2 lights on every pixel whose residual is a little larger: ps_cup direct, 6 lights)
+    few = inl.sum(axis=0) < p.min_lights
+    used = np.where(few[None, :], used, inl)
     del r, wl1, wsum, free
     # least-squares polish on the inliers (Gaussian-efficient, exact when inliers are exact)
     amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used)

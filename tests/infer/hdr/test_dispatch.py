@@ -10,6 +10,7 @@ from pbrbench.infer.hdr import (
     calibrate_debevec1997,
     calibrate_response,
     merge_debevec1997,
+    merge_granados2010,
     merge_hdr,
 )
 from tests.infer.hdr._data import scene
@@ -21,13 +22,14 @@ def bracket():
     return br.images, br.exposure_times
 
 
-def test_defaults_are_debevec1997(bracket):
+def test_defaults_are_debevec1997_and_granados2010(bracket):
     Z, t = bracket
     a = calibrate_response(Z, t)
     np.testing.assert_array_equal(a.inverse, calibrate_debevec1997(Z, t).inverse)
     assert a.method == "debevec1997"
-    np.testing.assert_array_equal(merge_hdr(Z, t, a), merge_debevec1997(Z, t, a))
-    assert set(MERGE_METHODS) == {"debevec1997"}
+    np.testing.assert_array_equal(merge_hdr(Z, t, a), merge_granados2010(Z, t, a))
+    np.testing.assert_array_equal(merge_hdr(Z, t, a, method="debevec1997"), merge_debevec1997(Z, t, a))
+    assert set(MERGE_METHODS) == {"debevec1997", "granados2010"}
 
 
 @pytest.mark.parametrize("name", list(CALIBRATION_METHODS))
@@ -43,8 +45,8 @@ def test_unknown_method(bracket):
     Z, t = bracket
     with pytest.raises(ValueError, match="method='debevec'.*'debevec1997', 'robertson2003', 'mitsunaga1999'"):
         calibrate_response(Z, t, method="debevec")
-    with pytest.raises(ValueError, match="method='granados2010'"):
-        merge_hdr(Z, t, calibrate_response(Z, t), method="granados2010")
+    with pytest.raises(ValueError, match="method='granados'.*'debevec1997', 'granados2010'"):
+        merge_hdr(Z, t, calibrate_response(Z, t), method="granados")
 
 
 def test_option_of_another_method_is_rejected_with_the_options_listed(bracket):
@@ -57,7 +59,10 @@ def test_option_of_another_method_is_rejected_with_the_options_listed(bracket):
         calibrate_response(Z, t, method="robertson2003", smoothness=1e-3)
     with pytest.raises(ValueError, match=r"merge_hdr\(method='debevec1997'\): unknown option\(s\) weights; "
                                          r"debevec1997 accepts weighting, noise_model, return_mask"):
-        merge_hdr(Z, t, calibrate_response(Z, t), weights="hat")
+        merge_hdr(Z, t, calibrate_response(Z, t), method="debevec1997", weights="hat")
+    with pytest.raises(ValueError, match=r"merge_hdr\(method='granados2010'\): unknown option\(s\) weighting; "
+                                         r"granados2010 accepts noise_model, iterations, return_mask"):
+        merge_hdr(Z, t, calibrate_response(Z, t), weighting="hat")
 
 
 def test_forwarded_options_change_the_result(bracket):
@@ -67,7 +72,7 @@ def test_forwarded_options_change_the_result(bracket):
     assert not np.array_equal(a.inverse, b.inverse)
     np.testing.assert_array_equal(b.inverse, calibrate_debevec1997(Z, t, smoothness=1e-3).inverse)
     m0 = merge_hdr(Z, t, a)
-    m1 = merge_hdr(Z, t, a, weighting="hat")
+    m1 = merge_hdr(Z, t, a, method="debevec1997", weighting="hat")
     assert not np.array_equal(m0, m1)
     np.testing.assert_array_equal(m1, merge_debevec1997(Z, t, a, weighting="hat"))
     rad, sat = merge_hdr(Z, t, a, return_mask=True)

@@ -46,3 +46,50 @@ def test_option_value_errors():
     br = Camera("gamma").capture(scene(8), [0.25, 1.0])
     with pytest.raises(ValueError, match="degree"):
         calibrate_mitsunaga1999(br.images, br.exposure_times, degree=0)
+
+
+def test_order_by_the_papers_rule_finds_the_true_degree_and_black_at_zero():
+    # a cubic inverse with c_0 = 0: the rule (smallest pair error among monotone fits) needs
+    # no more than the true order, and the fit is exact to quantisation
+    L = scene(48, seed=2)
+    br = Camera("polynomial", bit_depth=12).capture(L, TIMES, seed=1)
+    resp = calibrate_mitsunaga1999(br.images, br.exposure_times, estimate_ratios=False)
+    z = np.arange(8, 4095)
+    err = np.log2(resp.inverse[z]) - np.log2(br.true_inverse[z])
+    assert np.max(np.abs(err - err.mean(axis=0))) < 0.01
+    assert resp.coefficients.shape[0] - 1 >= 3
+
+
+def test_dark_end_of_a_gamma_camera_is_within_the_floor():
+    # the failure of the unconstrained fit: a gamma-2.2 camera, whose inverse M^2.2 a
+    # polynomial follows badly near black; the dark end is constrained (monotone, black at 0)
+    from pbrbench.camera import bracket_exposure_times
+    from pbrbench.infer.hdr import CameraResponse, merge_hdr
+    from pbrbench.metrics.hdr import hdr_scores
+    from pbrbench.perf.hdr import synthetic_radiance
+
+    L = synthetic_radiance(128).astype(float)
+    br = Camera("gamma").capture(L, bracket_exposure_times(L, stops=1.0, count=7, headroom=0.9), seed=11)
+    resp = calibrate_mitsunaga1999(br.images, br.exposure_times)
+    true = CameraResponse(np.maximum.accumulate(np.maximum(br.true_inverse, 1e-9), axis=0), 256, "true")
+    ours = hdr_scores(merge_hdr(br.images, resp.exposure_times, resp), L)
+    floor = hdr_scores(merge_hdr(br.images, br.exposure_times, true), L)
+    assert ours["log2_rmse"] < 1.3 * floor["log2_rmse"]
+    assert ours["dark1"] < 1.3 * floor["dark1"]
+    assert np.all(np.diff(resp.inverse, axis=0) > 0)
+
+
+def test_monotone_even_when_least_squares_is_not():
+    from pbrbench.infer.hdr.mitsunaga1999 import _mn_fit, _moments
+
+    # pairs that a free cubic fits best with a dip: p(0.1) must not fall below p(0)
+    ma = np.linspace(0.05, 0.9, 200)
+    mb = np.minimum(ma * 1.3 + 0.02 * np.sin(40 * ma), 0.99)
+    kk = np.zeros(ma.size, int)
+    mom = _moments(ma, mb, kk, 1, 6)
+    free = _mn_fit(mom, np.array([0.7]), 6, True, 1 / 255, False)
+    cons = _mn_fit(mom, np.array([0.7]), 6, True, 1 / 255, True)
+    M = np.linspace(0, 1, 501)
+    assert np.any(np.diff(np.polynomial.polynomial.polyval(M, free)) < 0)
+    assert np.all(np.diff(np.polynomial.polynomial.polyval(M, cons)) >= -1e-9)
+    assert cons[-1] + cons[:-1].sum() == pytest.approx(1.0)

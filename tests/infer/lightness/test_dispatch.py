@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from pbrbench.infer.lightness import METHODS, lightness, lightness_blake1985
+from pbrbench.infer.lightness import METHODS, lightness, lightness_blake1985, lightness_grosse2009
 from pbrbench.shading.mondrian import mondrian_scene
 
 
@@ -13,7 +13,7 @@ def image():
 
 
 def test_table_and_default(image):
-    assert METHODS == {"blake1985": lightness_blake1985}
+    assert METHODS == {"blake1985": lightness_blake1985, "grosse2009": lightness_grosse2009}
     r, s = lightness(image)
     r0, s0 = lightness_blake1985(image)
     np.testing.assert_array_equal(r, r0)

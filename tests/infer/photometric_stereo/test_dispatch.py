@@ -6,7 +6,6 @@ import pytest
 from pbrbench.infer.photometric_stereo import (
     METHODS,
     photometric_stereo,
-    photometric_stereo_ikehata2012_l1,
     photometric_stereo_woodham1980,
 )
 from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
@@ -23,8 +22,8 @@ def glossy():
 
 
 def test_table():
-    assert METHODS == {"woodham1980": photometric_stereo_woodham1980,
-                       "ikehata2012_l1": photometric_stereo_ikehata2012_l1}
+    assert set(METHODS) == {"woodham1980", "ikehata2012_l1", "ikehata2012_sbl", "wu2010"}
+    assert METHODS["woodham1980"] is photometric_stereo_woodham1980
 
 
 @pytest.mark.parametrize("name", list(METHODS))

@@ -1,0 +1,69 @@
+"""The effect tables of the headline: matched scenes, twins, paired and independent standard
+errors, significance and the convex / concave split."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from pbrbench.report.effects import base_scene, effect_tables, match_key
+from pbrbench.uncertainty import mean_se, paired_se, significant, standard_error
+
+
+def s(scene, cond, value, *, alg="m", unc=0.1, rep=None, h=None):
+    d = {"task": "t", "scene": scene, "condition": cond, "algorithm": alg, "metric": "err", "value": value,
+         "better": "lower", "unit": "deg", "uncertainty": unc, "scene_hash": h or base_scene(match_key(scene))}
+    if rep is not None:
+        d["rep_a"], d["rep_b"] = rep
+    return d
+
+
+INFO = {"t": {"headline_metric": "err", "conditions": ["local", "area", "global"], "reference_condition": "local"}}
+
+
+def test_twins_and_labels_match_their_base_scene():
+    assert match_key("ps_cup_area[albedo=0.5]") == "ps_cup[albedo=0.5]"
+    assert match_key("sfs_vase_area:view") == "sfs_vase:view" and base_scene("sfs_vase:view") == "sfs_vase"
+    assert match_key("area_light_scene") == "area_light_scene"
+
+
+def test_standard_error_from_replicates():
+    assert standard_error(1.0, 1.2, 0.8) == pytest.approx(0.2)
+    assert standard_error(1.0, 1.2, 0.8, 1.3) == pytest.approx(math.sqrt(0.04 + 0.09 / 2))
+    assert math.isnan(standard_error(1.0))
+    assert mean_se([1.0, 3.0], [0.3, 0.4]) == (2.0, pytest.approx(0.25))
+    assert significant(0.5, 0.2) is True and significant(0.3, 0.2) is False and significant(1.0, float("nan")) is None
+
+
+def test_paired_replicates_of_one_render_cancel_their_common_noise():
+    # global and local of one render: their noise is shared, the difference of paired halves sees only what differs
+    loc = s("x", "local", 1.0, unc=0.5, rep=(1.5, 0.5))
+    glo = s("x", "global", 2.0, unc=0.5, rep=(2.52, 1.48))
+    assert paired_se(glo, loc) == pytest.approx(0.02)
+    # an area twin is another render: independent errors add in quadrature
+    area = s("x_area", "area", 2.0, unc=0.5, rep=(2.5, 1.5), h="x_area")
+    assert paired_se(area, loc) == pytest.approx(math.sqrt(0.5))
+
+
+def test_effects_are_averaged_over_matched_scenes_and_split_by_geometry():
+    scores = [s("cup", "local", 1.0), s("cup", "global", 9.0), s("ball", "local", 1.0), s("ball", "global", 1.05),
+              s("cup_area", "area", 3.0), s("ball_area", "area", 3.0), s("lonely", "local", 100.0)]
+    (t,) = effect_tables(scores, INFO, geometry={"cup": "concave", "ball": "convex"})
+    labels = [c["label"] for c in t["columns"]]
+    assert labels == ["local", "area − local", "global − local", "global − local (concave)", "global − local (convex)"]
+    cells = dict(zip(labels, t["rows"][0]["cells"], strict=True))
+    assert cells["local"]["n"] == 3 and cells["local"]["value"] == pytest.approx(34.0)
+    assert cells["area − local"]["value"] == pytest.approx(2.0) and cells["area − local"]["n"] == 2
+    assert cells["global − local"]["value"] == pytest.approx((8.0 + 0.05) / 2)
+    assert cells["global − local (concave)"]["significant"] is True
+    conv = cells["global − local (convex)"]
+    assert conv["value"] == pytest.approx(0.05) and conv["insignificant"] is True  # 0.05 < 2 * sqrt(0.02)
+    assert t["noise_floor"] == pytest.approx(0.1) and t["unit"] == "deg"
+
+
+def test_no_uncertainty_never_makes_an_effect():
+    scores = [s("x", "local", 1.0, unc=None), s("x", "global", 5.0, unc=None)]
+    (t,) = effect_tables(scores, INFO)
+    eff = t["rows"][0]["cells"][1]
+    assert eff["value"] == 4.0 and eff["significant"] is None and not eff["insignificant"]
