@@ -263,6 +263,48 @@ def cases() -> list[Case]:
                 out.append(Case(fname, oname, mname, make(pos, kw, o2), may_accept=may))
         # uninformative data
         out += _uninformative(fname, fn, pos, kw, opts, make)
+    out += _every_method(B)
+    return out
+
+
+DISPATCHERS = {"calibrate_response": "CALIBRATION_METHODS", "merge_hdr": "MERGE_METHODS", "lightness": "LIGHTNESS_METHODS",
+               "photometric_stereo": "PS_METHODS", "integrate_normals": "INTEGRATION_METHODS",
+               "shape_from_shading": "SFS_METHODS", "light_from_shading": "SFS_LIGHT_METHODS",
+               "remove_specularities": "FILL_METHODS"}
+
+
+def _every_method(B) -> list[Case]:
+    """The array mutations once more through each dispatcher, for every method of its table
+    (methods added later are covered without editing this file)."""
+    import pbrbench.infer as I
+
+    specs = _specs(B)
+    out = []
+    for disp, table in DISPATCHERS.items():
+        fn = getattr(I, disp)
+        pos, kw, _ = specs[disp]
+        default = inspect.signature(fn).parameters["method"].default
+        for method in getattr(I, table):
+            if method == default:
+                continue
+            for aname in pos:
+                if aname == "response":
+                    continue
+                for mname in ("complex", "object", "empty", "nan", "inf", "flat", "ragged", "none"):
+                    if mname == "flat" and np.ndim(pos[aname]) <= 1:
+                        continue
+                    p2 = dict(pos, **{aname: ARRAY_MUTATIONS[mname](pos[aname])})
+
+                    def call(fn=fn, p2=p2, kw=kw, method=method):
+                        return fn(*p2.values(), method=method, **kw)
+                    out.append(Case(f"{disp}[{method}]", aname, mname, call))
+            if "response" in pos:
+                for mname, r in _bad_responses(B).items():
+                    def call(fn=fn, pos=pos, kw=kw, method=method, r=r):
+                        if isinstance(r, _Refused):
+                            raise _RefusedAtConstruction(r.exc)
+                        return fn(*dict(pos, response=r).values(), method=method, **kw)
+                    out.append(Case(f"{disp}[{method}]", "response", mname, call))
     return out
 
 
