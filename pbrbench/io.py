@@ -4,11 +4,18 @@ PNG previews, any image file by suffix, and the public loader of renders (:func:
 The OpenEXR Python API changed within 3.x; this module is the only place that touches it.
 Channels are stored one by one under their full names (``radiance.R``, ``normals.X``,
 ``depth.Z``): arrays (H, W, 3) map to the suffixes of :data:`SUFFIXES`, arrays (H, W) to ``.Y``.
+
+Every writer here is atomic: the data goes to a temporary file beside the target, which is
+renamed over it only once complete, so a full disk or a kill mid-write never leaves a partial
+file under the final name (:func:`atomic_path`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
+import secrets
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -67,16 +74,69 @@ def group_channels(channels: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     return out
 
 
+# ----------------------------------------------------------------------------- atomic writes
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike):
+    """Yield a temporary path beside ``path`` (same suffix); on success it replaces ``path`` in one
+    rename, on any error it is removed.  Errors (OSError) propagate unchanged."""
+    p = Path(path)
+    tmp = p.with_name(f".tmp-{os.getpid()}-{secrets.token_hex(3)}-{p.name}")
+    try:
+        yield tmp
+        if not tmp.exists():
+            raise OSError(f"{tmp}: the writer produced no file")
+        os.replace(tmp, p)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise
+
+
+def write_text(path: str | os.PathLike, text: str) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+    return Path(path)
+
+
+def write_bytes(path: str | os.PathLike, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+    return Path(path)
+
+
+def copy_file(src: str | os.PathLike, dst: str | os.PathLike) -> Path:
+    """Copy ``src`` to ``dst`` atomically (``dst`` is whole or untouched)."""
+    with atomic_path(dst) as tmp:
+        shutil.copyfile(src, tmp)
+        if os.path.getsize(tmp) != os.path.getsize(src):
+            raise OSError(f"{dst}: copy is incomplete")
+    return Path(dst)
+
+
 def write_exr(path: str | os.PathLike, arrays: dict[str, np.ndarray], header: dict | None = None) -> None:
-    """Write named float32 arrays to a ZIP-compressed (lossless) scanline EXR."""
+    """Write named float32 arrays to a ZIP-compressed (lossless) scanline EXR (atomically)."""
     import OpenEXR
 
     chans = flatten_channels(arrays)
     hdr = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     if header:
         hdr.update(header)
-    with OpenEXR.File(hdr, chans) as f:
-        f.write(str(path))
+    with atomic_path(path) as tmp:
+        try:
+            with OpenEXR.File(hdr, chans) as f:
+                f.write(str(tmp))
+        except OSError:
+            raise
+        except Exception as exc:  # the OpenEXR bindings raise RuntimeError for I/O failures
+            raise OSError(f"cannot write the EXR file ({exc})") from exc
 
 
 def write_exr_image(path: str | os.PathLike, image: np.ndarray) -> None:
@@ -131,7 +191,8 @@ def write_png(path: str | os.PathLike, rgb8: np.ndarray) -> None:
     a = np.asarray(rgb8)
     if a.ndim == 2:
         a = np.repeat(a[..., None], 3, axis=2)
-    mpimg.imsave(str(path), a)
+    with atomic_path(path) as tmp:
+        mpimg.imsave(str(tmp), a, format="png")
 
 
 def write_preview(path: str | os.PathLike, img: np.ndarray, **kw) -> None:
@@ -166,8 +227,11 @@ def write_colormap_png(path: str | os.PathLike, data: np.ndarray, *, label: str 
     if label:
         cb.set_label(label)
     fig.tight_layout()
-    fig.savefig(str(path))
-    plt.close(fig)
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(str(tmp), format="png")
+    finally:
+        plt.close(fig)
 
 
 def ensure_dir(p: str | os.PathLike) -> Path:

@@ -27,6 +27,7 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from pbrbench.bench import lifecycle
 from pbrbench.bench.executors import blas_threads, job_threads, make_executor, worker_source
 from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
@@ -161,11 +162,12 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     log = log or _log
     settings = settings or Settings.from_env()
     t_start = time.perf_counter()
+    lifecycle.preflight(settings)  # an unwritable --out: one line, and no junk run in the store
     store = Store(settings.store_path())
     prior_done: set[str] = set()
     if cfg.resume:
         run_id = store.resolve_run(cfg.resume)
-        run = store.get_run(run_id)
+        run = lifecycle.check_resumable(store, run_id)
         rc = run["config"]
         cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
         cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
@@ -190,20 +192,21 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
 
     config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info,
                   quality_profile=quality.render_key(), environment={"lock": locked_versions()})
+    jobs = plan(tasks, quality)          # planned (and the scene files loaded) before the run exists,
+    todo = [j for j in jobs if j.key not in prior_done]  # so a bad scene file leaves no junk run
+    names = needed_scenes(jobs)
+    specs = source.specs(names)
     if cfg.resume:
         store.set_status(run_id, "running")
     else:
         run_id = store.create_run(quality=quality.name, config=config, variant=variant)
+    heartbeat = lifecycle.start(store, run_id)   # process and heartbeat: a dead run reads interrupted
     run_dir = Path(settings.out) / run_id
     run_dir.mkdir(parents=True, exist_ok=True)
     bars = settings.progress_bars(sys.stderr)
 
     from pbrbench.progress import Progress
 
-    jobs = plan(tasks, quality)
-    todo = [j for j in jobs if j.key not in prior_done]
-    names = needed_scenes(jobs)
-    specs = source.specs(names)
     outcome = RunOutcome(run_id, None, [], len(jobs), len(jobs) - len(todo), {}, task_info=info)
     ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
                                    settings=settings)
@@ -287,7 +290,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         log(f"run {run_id} interrupted; resume it with `pbrbench run --resume {run_id}`")
         raise
     finally:
-        store.set_status(run_id, status, variant=variant)
+        lifecycle.finish(store, run_id, status, variant=variant, heartbeat=heartbeat, log=log)
         if executor is None:
             ex.close()
     outcome.wall_seconds = time.perf_counter() - t_start

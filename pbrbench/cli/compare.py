@@ -11,7 +11,9 @@ def register(sub):
     p.add_argument("run_b", help="the run to compare with it")
     p.add_argument("--task", default=None, help="only this task")
     p.add_argument("--all", action="store_true", help="also list unchanged scores")
-    p.add_argument("--rel", type=float, default=0.0, metavar="R",
+    from pbrbench.cli.common import nonnegative_float
+
+    p.add_argument("--rel", type=nonnegative_float, default=0.0, metavar="R",
                    help="also call a change unchanged when |b - a| <= R * |a| (default 0)")
     p.add_argument("--html", nargs="?", const="", default=None, metavar="PATH",
                    help="also write a comparison page (default: <out>/compare-<A>-<B>/index.html)")

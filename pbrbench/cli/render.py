@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -54,7 +53,27 @@ def describe_render(spec, gt) -> dict:
 
 
 def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    """A file name for a scene: its name with other characters replaced; never '', '.' or '..'
+    (scene names are checked when loaded; this is the second line of defence)."""
+    s = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)[:200]
+    return s if s.strip(".") else "_" + s
+
+
+def _write_out(gt, where: Path, d: Path, previews: bool, meta: dict | None = None) -> None:
+    """Copy one ground truth into ``d`` (each file replaced atomically: whole or untouched);
+    ``gt.json`` holds ``meta`` (default: the ground truth's metadata)."""
+    from pbrbench.errors import disk_error
+    from pbrbench.io import copy_file, write_text
+    from pbrbench.render.previews import write_previews
+
+    try:
+        d.mkdir(parents=True, exist_ok=True)
+        copy_file(where / "gt.exr", d / "gt.exr")
+        write_text(d / "gt.json", json.dumps(gt.meta if meta is None else meta, indent=1, sort_keys=True))
+        if previews:
+            write_previews(gt, d)
+    except OSError as exc:
+        raise disk_error(exc, f"--out {d}", option="--out") from None
 
 
 def run(args) -> int:
@@ -62,15 +81,20 @@ def run(args) -> int:
     from pbrbench.progress import Progress
     from pbrbench.render.cache import RenderCache, ground_truth
     from pbrbench.render.groundtruth import n_passes
-    from pbrbench.render.previews import write_previews
     from pbrbench.scene.load import load_library, resolve
 
+    if args.all and args.scenes:
+        raise UserError("render: give SCENE names or --all, not both")
     if args.all:
         specs = list(load_library(st.scenes).values())
+        if not specs:
+            raise UserError(f"render --all: the scene library {st.scenes} has no scene files")
     elif args.scenes:
         specs = resolve(args.scenes, st.scenes)
     else:
         raise UserError("render: name at least one SCENE (see `pbrbench scenes`) or pass --all")
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise UserError(f"--out {args.out}: is a file, not a directory; choose a directory")
     cache = RenderCache(st.cache)
     bars = st.progress_bars(sys.stderr)
     t_all = time.perf_counter()
@@ -84,11 +108,7 @@ def run(args) -> int:
         where = cache.entry_dir(gt.meta["cache_key"])
         if args.out:
             d = Path(args.out) / _safe(spec.name)
-            d.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(where / "gt.exr", d / "gt.exr")
-            (d / "gt.json").write_text(json.dumps(describe_render(spec, gt), indent=1, sort_keys=True))
-            if not args.no_previews:
-                write_previews(gt, d)
+            _write_out(gt, where, d, not args.no_previews, meta=describe_render(spec, gt))
             where = d
         noise = gt.meta.get("noise", {}).get("radiance_rel_sd_rms", float("nan"))
         rows.append((spec.name, "cache" if cached else f"{gt.meta['wall_s']:.1f}s", noise))

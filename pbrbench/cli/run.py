@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import sys
 
-from pbrbench.cli.common import add_cache, add_quality, add_store, add_variant, settings
+from pbrbench.cli.common import (
+    add_cache,
+    add_quality,
+    add_store,
+    add_variant,
+    int_at_least,
+    settings,
+)
 
 EXIT_OK, EXIT_FAILED_JOBS, EXIT_REGRESSION = 0, 1, 2
 
@@ -21,10 +28,10 @@ def register(sub):
                    help="local: this process; dask: a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (default: start a LocalCluster)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
                    help="LocalCluster worker processes (one thread each; default: cores / 2)")
     add_store(p)
-    p.add_argument("--seed", type=int, default=0, help="seed handed to every job (default 0)")
+    p.add_argument("--seed", type=int_at_least(0, (1 << 63) - 1), default=0, help="seed handed to every job (default 0)")
     p.add_argument("--check", action="store_true",
                    help="compare with the regression baselines (tests/baselines/<quality>.json) and exit 2 on a regression")
     p.add_argument("--update-baselines", action="store_true",
@@ -86,6 +93,12 @@ def run(args) -> int:
         raise UserError("--workers only applies to --executor dask")
     if args.scheduler and args.executor != "dask":
         raise UserError("--scheduler only applies to --executor dask")
+    if args.tasks:  # before anything is created on disk
+        from pbrbench.tasks import task_names
+
+        unknown = [t for t in args.tasks if t not in task_names()]
+        if unknown:
+            raise UserError(f"--tasks: unknown task(s) {', '.join(map(repr, unknown))}; choose from {', '.join(task_names())}")
     if args.resume and (args.tasks or args.update_baselines):
         raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
     if args.resume and (args.algorithm or args.algorithm_time_limit is not None or args.no_plugins):
@@ -128,9 +141,10 @@ def run(args) -> int:
                 print(f"  missing: {k}")
             code = EXIT_REGRESSION
     elif args.check:
-        print(f"--check: no baselines for quality {cfg.quality}; create them with "
+        # no baselines is a set-up mistake, not a regression (exit 2 means regressions only)
+        print(f"pbrbench: error: --check: no baselines for quality {cfg.quality}; create them with "
               f"`pbrbench run --quality {cfg.quality} --update-baselines`", file=sys.stderr)
-        code = EXIT_REGRESSION
+        code = EXIT_FAILED_JOBS
     if args.update_baselines:
         path = update_baselines(cfg, o, settings=st)
         print(f"baselines written: {path}")
