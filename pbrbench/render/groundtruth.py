@@ -27,8 +27,8 @@ scene's ``render.seed``.
 from __future__ import annotations
 
 import gc
-import math
 import importlib.metadata
+import math
 import platform
 import time
 from dataclasses import dataclass, field
