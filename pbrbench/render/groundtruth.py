@@ -40,7 +40,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 6  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 7  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "depth")  # AOVs whose half-sample deltas are kept
 
@@ -208,6 +208,19 @@ class _Renderer:
             films.append(_film_arrays(scene))
         obj_avg = [self._object_ids(scene, f["si.I"]) for f in films]  # footprint-averaged: mixed pixels -> -1
         del scene
+        if all(float(f["cov.A"].max()) == 0.0 for f in films) and any(float(f["alb.R"].max()) > 0 for f in films):
+            # scalar variants leave the nested integrator's alpha at 0: measure the covered fraction of
+            # each pixel as the albedo AOV of the same samples with every surface white instead
+            d = scene_dict(mi, self.spec, self.res, half, integrator={"type": "aov", "aovs": "w:albedo"},
+                           drop_occluders=False)
+            for v in d.values():
+                if isinstance(v, dict) and "bsdf" in v:
+                    v["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
+            white = mi.load_dict(d, optimize=False)
+            for k in range(2):
+                mi.render(white, seed=base + k, spp=half)
+                films[k]["cov.A"] = _film_arrays(white)["w.R"]
+            del white
         R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)  # columns: left, up, view direction
         origin, view = M[:3, 3], R[:, 2]
 
