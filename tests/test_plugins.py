@@ -168,7 +168,9 @@ def test_a_py_file_and_a_dotted_module_are_scored_beside_the_builtins(tmp_path, 
         assert sc[(name, "normal_mean_deg")] == pytest.approx(builtin, abs=0.01)   # normals rounded to 1e-4
         assert sc[(name, "coverage")] == 1.0 and (name, "failed") not in sc
     versions = {s["algorithm"]: s["algorithm_version"] for s in o.scores}
-    file_hash = source_hash(Algorithm("x", "t", sys.modules[next(m for m in sys.modules if m.startswith("pbrbench_plugin_mine"))].solve).fn)
+    from pbrbench.registry import _load_path_module
+
+    file_hash = source_hash(Algorithm("x", "t", _load_path_module(plugin_file).solve).fn)
     assert versions["solve"] == f"3+{file_hash}" and versions["dotted"].startswith("0.9+")
     info = o.task_info["photometric_stereo"]
     assert info["algorithm_kinds"]["solve"] == "plugin"
