@@ -149,10 +149,11 @@ def _rooms(task, job, gts, quality) -> JobResult:
     res.plots["Fig 1.17 black room vs white room: a section (image rows ~72 % down, through the boxes)"] = {
         "x": None, "series": series, "xlabel": "image column", "ylabel": "radiance (band of rows)",
         "title": "Fig 1.17: same direct light; the white room adds bright reflexes, the black room keeps dark shadows"}
-    for label, (img, loc) in shown.items():
+    for label, (img, _) in shown.items():
         res.images[f"Fig 1.17 {label}: path tracer (one exposure for both rooms)"] = _display(img, expo)
     if shown:
-        res.images["Fig 1.17 local model of either room (one exposure for both rooms)"] = _display(loc, expo)
+        local_white = shown[list(shown)[-1]][1]
+        res.images["Fig 1.17 local model of either room (one exposure for both rooms)"] = _display(local_white, expo)
     return res
 
 

@@ -41,7 +41,7 @@ def test_the_local_model_fails_in_the_white_room_and_holds_in_the_black_one(room
     assert black[("local", "radiosity_rel_error")] < 0.15          # the black room's is not
     assert white[("radiosity", "radiosity_rel_error")] < 0.5 * white[("local", "radiosity_rel_error")]
     bounces = [white[(a, "radiosity_rel_error")] for a in ("local", "radiosity:1", "radiosity:2", "radiosity:4")]
-    assert all(b < a for a, b in zip(bounces, bounces[1:]))       # each bounce adds the light it missed
+    assert all(b < a for a, b in zip(bounces, bounces[1:], strict=False))       # each bounce adds the light it missed
     # against the direct light the local model is the right one, the radiosity model adds light
     assert err["room_white", "local"][("local", "radiosity_rel_error")] < err["room_white", "local"][
         ("radiosity", "radiosity_rel_error")]
