@@ -19,9 +19,9 @@ format of :class:`pbrbench.tasks.base.JobResult` plots) to ``figures`` when it i
   irradiance meter above a plane of sinusoidal radiance (chapter Fig 1.19).
 
 How render and model are compared (groove and room): pixels are grouped into *cells* (the strips
-across the groove, the patches of the room: the patches of the level compared), each pixel
-assigned to the patch its centre sees, every pixel whose footprint lies on patches the camera sees
-whole (:func:`_pixel_selection`); the model images average 4 x 4 points per pixel, as the
+across the groove at the level compared; in the room the patches of a mesh coarser than the
+model's), each pixel assigned to the patch its centre sees, every pixel whose footprint lies on
+patches (:func:`_pixel_selection`); the model images average 4 x 4 points per pixel, as the
 renders' box filter averages the footprint, so pixels across an edge are the same mixtures in
 both and each cell's pixels sample the patch uniformly (no pixel is left out: leaving out the
 pixels along an edge, as the ground truth's pure mask does, biases a cell's mean where the
@@ -29,7 +29,9 @@ radiance varies across it, e.g. a wall next to the light's plane).
 Per cell, the render's mean ``r``, its Monte Carlo standard error ``s`` (from ``delta``, the per-pixel
 half-difference of the two half-sample renders: :class:`Cells`) and the mean ``m_L`` of
 the model image at mesh level ``L`` are formed; the discretisation error of level ``L`` is
-estimated by ``d = |m_L - m_{L-1}|`` (an upper estimate for a first-order or better method).
+estimated by ``d = |m_L - m_{L-1}|`` (the error of a first-order method whose patches halve from
+one level to the next; better methods have less) plus ``|m_L - m'_L|``, ``m'_L`` the same level
+sampled at 3 x 3 instead of 4 x 4 points per pixel (the footprint's sampling at edges).
 Levels are refined until ``d <= 2 %`` of the peak and the difference beyond the noise,
 ``(|r - m_L| - z s)_+``, is ``<= 2 %`` of the peak, or the finest level is reached.  Two records per
 case: ``max |r - m| / (z s + d) <= 1`` (agreement within the stated noise plus discretisation;
@@ -267,14 +269,17 @@ class Comparison:
 
 
 def refine(cells_at, model_at, levels) -> Comparison:
-    """Compare the render with ``model_at(level)`` (an image) for ``levels`` in order, on the cells
-    ``cells_at(level)`` (the patches of that level: the model's patch means are then its own
-    values, and ``d`` is how far the previous level's image is from them over the same pixels),
+    """Compare the render with ``model_at(level)`` (an image, or the image and the same sampled with
+    fewer points per pixel) for ``levels`` in order, on the cells ``cells_at(level)``; ``d`` is how
+    far the previous level's image is from the level's over the same pixels -- the error estimate of
+    a first-order method whose patches halve -- plus how far the fewer-points image is (the
+    footprint's sampling),
     until the discretisation estimate and the difference beyond the noise are both within 2 % of
     the peak, or the levels run out (at least two levels; see the module docstring)."""
     prev, done, cmp = None, [], None
     for lev in levels:
         img = model_at(lev)
+        img, half = img if isinstance(img, tuple) else (img, None)
         done.append(lev)
         if prev is not None:
             cells = cells_at(lev)
@@ -282,7 +287,10 @@ def refine(cells_at, model_at, levels) -> Comparison:
             z = _z(int(u.sum()))
             peak = max(float(np.max(cells.render[u])) if u.any() else 0.0, 1e-30)   # a black scene: every ratio 0
             m = cells.mean(img)
-            cmp = Comparison(cells, lev, list(done), m, np.abs(m - cells.mean(prev)), z, peak, np.abs(cells.render - m))
+            d = np.abs(m - cells.mean(prev))
+            if half is not None:   # the footprint's sampling: the same level at 3 x 3 instead of 4 x 4 points
+                d = d + np.abs(m - cells.mean(half))
+            cmp = Comparison(cells, lev, list(done), m, d, z, peak, np.abs(cells.render - m))
             if np.max(cmp.d[u], initial=0.0) <= MAX_EXCESS * peak and cmp.excess() <= MAX_EXCESS:
                 return cmp
         prev = img
@@ -295,14 +303,13 @@ def _level(x) -> str:
     return "/".join(str(v) for v in x) if isinstance(x, tuple) else str(x)
 
 
-def _records(name: str, c: Comparison, what: str) -> list[Record]:
+def _records(name: str, c: Comparison, what: str, cells_are: str = "the patches of the final level") -> list[Record]:
     cells = c.cells
     u = cells.used
     noise = float(np.max(c.z * cells.se[u], initial=0.0) / c.peak)
     disc = float(np.max(c.d[u], initial=0.0) / c.peak)
     where = int(np.argmax(np.where(u, c.diff, -1)))
-    tail = (f"{int(u.sum())} cells of >= {MIN_PIXELS} pixels ({int(cells.count[u].sum())} pixels; the patches "
-            f"of the final level); noise z*se <= {100 * noise:.2f} % of the peak (z = {c.z:.2f}), discretisation "
+    tail = (f"{int(u.sum())} cells of >= {MIN_PIXELS} pixels ({int(cells.count[u].sum())} pixels; {cells_are}); noise z*se <= {100 * noise:.2f} % of the peak (z = {c.z:.2f}), discretisation "
             f"d <= {100 * disc:.2f} % of the peak (levels {', '.join(_level(x) for x in c.levels)}: {what}); largest "
             f"|render - model| {100 * c.diff[where] / c.peak:.2f} % of the peak {c.peak:.4g}")
     return [_rec(name, c.agreement(), 1.0, "max |render - model| / (z se + d) over the cells; " + tail),
@@ -341,7 +348,8 @@ def groove_case(spec: SceneSpec, quality: str, cache) -> dict:
         E = direct_radiosity(spec, p)
         B = solve_radiosity(form_factor_matrix(p, visibility=False), p.albedo, E, method="direct").B
         local[n] = radiosity_image(spec, p, E, resolution=(W, H), supersample=SUPERSAMPLE)
-        return radiosity_image(spec, p, B, resolution=(W, H), supersample=SUPERSAMPLE)
+        return (radiosity_image(spec, p, B, resolution=(W, H), supersample=SUPERSAMPLE),
+                radiosity_image(spec, p, B, resolution=(W, H), supersample=SUPERSAMPLE - 1))
 
     cmp = refine(cells_at, model_at, [n for n in GROOVE_LEVELS if n <= max(8, W // 4)])
     segs, _, _ = groove_segments(cmp.level, opening_deg=opening, width=w)
@@ -389,10 +397,10 @@ ROOM_ROW = 0.72   # the section: the image row at this fraction of the height (t
 
 
 def room_case(spec: SceneSpec, quality: str, cache) -> dict:
-    """Render and model of one room (:func:`pbrbench.shading.forward_models.scene_model` at
-    6 and 12 patches across the view with 3 and 4 shadow-ray points per side below 96 px, 8, 16
-    and 24 with 3, 4 and 6 from 96 px; cells = the patches), and the section: a band of rows
-    about :data:`ROOM_ROW` down the image."""
+    """Render and model of one room (:func:`pbrbench.shading.forward_models.scene_model` at 6 and
+    12 patches across the view with 3 and 4 shadow-ray points per side, from 96 px at 12 and 24
+    with 4 and 6; cells = the patches of a mesh of 3, from 96 px 6, patches across the view), and
+    the section: a band of rows about :data:`ROOM_ROW` down the image."""
     from pbrbench.shading.forward_models import (
         model_patches,
         predict_radiance,
@@ -403,21 +411,25 @@ def room_case(spec: SceneSpec, quality: str, cache) -> dict:
 
     gt = _gt(spec, quality, cache)
     H, W = gt["radiance"].shape[:2]
-    c0 = 6 if W < 96 else 8
     # (patches across the view, shadow-ray points per side on patches and the light): both refined,
-    # so that d also measures the sampled visibility of the area light
-    levels = [(c0, 3), (2 * c0, 4)] + ([(3 * c0, 6)] if W >= 96 else [])
+    # so that d also measures the sampled visibility of the area light; the patches halve each level.
+    # The cells: the patches of a mesh twice coarser than the coarsest level (large against the
+    # model's patches, so the model resolves how the radiance varies inside each cell)
+    big = W >= 96
+    levels = [(12, 4), (24, 6)] if big else [(6, 3), (12, 4)]
+    mesh = model_patches(spec, view_width(spec) / (6 if big else 3))
+    idx = patch_index_image(spec, mesh, (W, H))
+    cells = Cells.of(idx, _pixel_selection(spec, mesh, W, H, whole=False), gt["radiance"], gt["radiance_delta"],
+                     len(mesh), faces=_faces(mesh, idx))
     images = {}
 
     def cells_at(level):
-        mesh = model_patches(spec, view_width(spec) / level[0])
-        idx = patch_index_image(spec, mesh, (W, H))
-        return Cells.of(idx, _pixel_selection(spec, mesh, W, H), gt["radiance"], gt["radiance_delta"], len(mesh),
-                        faces=_faces(mesh, idx))
+        return cells
 
     def model_at(level):
         images[level] = predict_radiance(spec, (W, H), cells=level[0], area_samples=level[1], supersample=SUPERSAMPLE)
-        return images[level]
+        return images[level], predict_radiance(spec, (W, H), cells=level[0], area_samples=level[1],
+                                               supersample=SUPERSAMPLE - 1)
 
     cmp = refine(cells_at, model_at, levels)
     row = int(ROOM_ROW * H)
@@ -425,7 +437,7 @@ def room_case(spec: SceneSpec, quality: str, cache) -> dict:
     c, a = cmp.level
     local = predict_radiance(spec, (W, H), bounces=0, cells=c, area_samples=a, supersample=SUPERSAMPLE)
     model = scene_model(spec, cells=c, area_samples=a)
-    return {"spec": spec, "cells": cmp.cells, "cmp": cmp, "gt": gt, "band": band, "row": row,
+    return {"spec": spec, "cells": cmp.cells, "cmp": cmp, "gt": gt, "band": band, "row": row, "cell_level": 6 if big else 3,
             "section": {"render": _grey(gt["radiance"])[band].mean(0), "direct": _grey(gt["direct"])[band].mean(0),
                         "model": _grey(images[cmp.level])[band].mean(0), "local": _grey(local)[band].mean(0)},
             "patches": len(model.patches)}
@@ -438,7 +450,8 @@ def check_room(quality: str = "draft", cache=None, *, figures=None, specs=None) 
     for s in specs:
         c = room_case(s, quality, cache)
         cases.append(c)
-        out += _records(f"radiosity_room[{s.name}]", c["cmp"], "patches across the view, shadow-ray points per side")
+        out += _records(f"radiosity_room[{s.name}]", c["cmp"], "patches across the view, shadow-ray points per side",
+                        f"the patches of a mesh of {c['cell_level']} patches across the view")
     if figures is not None:
         series = {}
         for k, c in enumerate(cases):

@@ -14,8 +14,9 @@ shading model), ``radiosity:k`` is ``B^(k)``, ``radiosity`` the converged ``B``.
 
 The mesh (:func:`model_patches`): :func:`pbrbench.shading.patches.patches_from_spec` with patches
 of side ``view_width / cells`` (``view_width`` the width the camera sees at its target, ``cells``
-the model's option: 16 by default, fewer in a draft run through the quality profile), except that
-a lone, unrotated ``spherical_cap`` heightfield is meshed as the inscribed ring mesh of
+the model's option: 16 by default, fewer in a draft run through the quality profile), cut along the
+outlines of the boxes and area lights that rest on a rectangle (:func:`conforming_cuts`), except that a lone,
+unrotated ``spherical_cap`` heightfield is meshed as the inscribed ring mesh of
 :func:`pbrbench.shading.concave_cap.spherical_cap_patches` (planar facets on the sphere: no area is
 lost at the rim, as the masked grid loses it).  Visibility in the form factors is sampled by rays
 unless no part of the scene can hide another (:func:`needs_visibility`: two planar faces, or a
@@ -50,6 +51,7 @@ __all__ = [
     "view_width",
     "needs_visibility",
     "model_patches",
+    "conforming_cuts",
     "scene_model",
     "predict_radiance",
     "MODELS",
@@ -116,13 +118,153 @@ def _concat(parts: list[Patches]) -> Patches:
                    np.concatenate(gi), np.concatenate(fid), np.concatenate(occ), np.concatenate(grp))
 
 
+def _area2(P: np.ndarray) -> float:
+    x, y = P[:, 0], P[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def _clip(P: np.ndarray, a, b, left: bool) -> np.ndarray:
+    """The part of convex polygon ``P`` (M, 2) left (or right) of the directed line a -> b."""
+    if len(P) == 0:
+        return P
+    d = np.asarray(b, float) - a
+    side = d[0] * (P[:, 1] - a[1]) - d[1] * (P[:, 0] - a[0])
+    side = side if left else -side
+    out = []
+    for k in range(len(P)):
+        p, q, sp, sq = P[k], P[(k + 1) % len(P)], side[k], side[(k + 1) % len(P)]
+        if sp >= 0:
+            out.append(p)
+        if (sp >= 0) != (sq >= 0):
+            out.append(p + (q - p) * (sp / (sp - sq)))
+    return np.asarray(out).reshape(-1, 2)
+
+
+def _pieces(P: np.ndarray, F: np.ndarray, eps: float) -> list[np.ndarray]:
+    """Convex pieces of ``P`` (counter-clockwise) none of which crosses the outline of the convex,
+    counter-clockwise polygon ``F``: ``P`` outside each edge of ``F`` in turn, and what is left."""
+    inside, out = P, []
+    for k in range(len(F)):
+        a, b = F[k], F[(k + 1) % len(F)]
+        piece = _clip(inside, a, b, left=False)
+        if len(piece) >= 3 and _area2(piece) > eps:
+            out.append(piece)
+        inside = _clip(inside, a, b, left=True)
+        if len(inside) < 3 or _area2(inside) <= eps:
+            return out
+    return out + [inside] if out else [P]
+
+
+def _box_faces(shape) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(corners (4, 3) counter-clockwise from outside, outward unit normal) of a box's six faces."""
+    from pbrbench.shading.patches import rotation_matrix
+
+    R = np.eye(3)
+    for r in shape.rotate:
+        R = rotation_matrix(r.axis, r.angle) @ R
+    half, c = np.asarray(shape.size, float) / 2, np.asarray(shape.center, float)
+    out = []
+    for ax in range(3):
+        t1, t2 = (ax + 1) % 3, (ax + 2) % 3
+        for sgn in (1.0, -1.0):
+            loc = np.zeros((4, 3))
+            loc[:, t1], loc[:, t2], loc[:, ax] = [-1, 1, 1, -1], [-1, -1, 1, 1], sgn
+            loc = loc if sgn > 0 else loc[::-1]
+            pts = (loc * half) @ R.T + c
+            nrm = np.cross(pts[1] - pts[0], pts[3] - pts[0])
+            out.append((pts, nrm / np.linalg.norm(nrm)))
+    return out
+
+
+def conforming_cuts(spec, patches: Patches, patch_size: float) -> Patches:
+    """Cut the patches of each rectangle along the outlines of what rests on it.
+
+    A box face lying on a rectangle (coplanar, facing it) hides the part of the rectangle under
+    it from the whole scene, and an area light parallel to a rectangle within ``patch_size`` in
+    front of it (a ceiling light) hides the part behind it from everything but the thin gap; a
+    patch that straddles such an outline is half hidden, half open, and its piecewise-constant
+    radiosity and its visibility (one ray from its centroid to a distant patch) mix the two: a
+    first-order error that refinement removes slowly (the face of a box next to the floor sees
+    that floor patch at close range).  Patches of the rectangle that cross such an outline are
+    cut along it into convex pieces (quadrilaterals, or a fan of triangles), so that none
+    straddles it; the rectangles' occluders are unchanged.
+    """
+    from pbrbench.shading.irradiance import rectangle_polygon
+    from pbrbench.shading.patches import rotation_matrix
+
+    lights = [lt for lt in list(spec.lights) + list(spec.light_set) if lt.type == "area"]
+    boxes = [s for s in spec.shapes if s.type == "box"]
+    if not lights and not boxes:
+        return patches
+    keep = np.ones(len(patches), bool)
+    new_v, new_n, new_k = [], [], []
+    for i, shape in enumerate(spec.shapes):
+        if shape.type != "rectangle":
+            continue
+        R = np.eye(3)
+        for r in shape.rotate:
+            R = rotation_matrix(r.axis, r.angle) @ R
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-9):  # a non-rigid rotation (unnormalised axis): skip
+            continue
+        ex, ey, n = R[:, 0], R[:, 1], R[:, 2]
+        c = np.asarray(shape.center, float)
+        facing = -n if shape.flip_normals else n
+        scale = max(shape.size)
+        feet = []
+        for lt in lights:
+            ln = np.asarray(lt.normal, float) / np.linalg.norm(lt.normal)
+            gap = (np.asarray(lt.center, float) - c) @ facing
+            if abs(abs(ln @ n) - 1) < 1e-6 and 0 <= gap < patch_size and ln @ facing > 0:
+                feet.append(rectangle_polygon(lt.center, lt.size, lt.normal, lt.up))
+        for b in boxes:
+            for pts, nrm in _box_faces(b):
+                if nrm @ facing < -1 + 1e-6 and abs((pts.mean(0) - c) @ n) < 1e-6 * scale:
+                    feet.append(pts)
+        if not feet:
+            continue
+        feet2 = []
+        for F in feet:
+            f2 = np.stack([(F - c) @ ex, (F - c) @ ey], -1)
+            feet2.append(f2 if _area2(f2) > 0 else f2[::-1])
+        for k in np.flatnonzero(patches.object_id == i):
+            q = patches.vertices[k][: patches.n_vertices[k]]
+            P = np.stack([(q - c) @ ex, (q - c) @ ey], -1)
+            P = P if _area2(P) > 0 else P[::-1]
+            eps = 1e-9 * abs(_area2(P))
+            pieces = [P]
+            for F in feet2:
+                pieces = [g for piece in pieces for g in _pieces(piece, F, eps)]
+            if len(pieces) == 1:
+                continue
+            keep[k] = False
+            w = (q[0] - c) @ n
+            for g in pieces:
+                polys = [g] if len(g) <= 4 else [g[[0, m, m + 1]] for m in range(1, len(g) - 1)]
+                for h in polys:
+                    v3 = c + h[:, :1] * ex + h[:, 1:] * ey + w * n
+                    if np.cross(v3[1] - v3[0], v3[2] - v3[0]) @ patches.normals[k] < 0:
+                        v3 = v3[::-1]
+                    if len(v3) == 3:
+                        v3 = np.concatenate([v3, v3[2:3]])
+                    new_v.append(v3)
+                    new_n.append(3 if np.allclose(v3[3], v3[2]) else 4)
+                    new_k.append(k)
+    if not new_v:
+        return patches
+    idx = np.concatenate([np.flatnonzero(keep), np.asarray(new_k, int)])
+    v = np.concatenate([patches.vertices[keep], np.asarray(new_v)])
+    return Patches(v, np.concatenate([patches.n_vertices[keep], np.asarray(new_n)]), patches.albedo[idx],
+                   patches.object_id[idx], np.full((len(v), 2), -1), patches.face_id[idx],
+                   patches.occluder_triangles, patches.occluder_groups)
+
+
 def model_patches(spec, patch_size: float) -> Patches:
     """The model's mesh of ``spec`` (see the module docstring) at patches of side ``patch_size``."""
     from pbrbench.shading.concave_cap import spherical_cap_patches
 
     caps = [i for i, s in enumerate(spec.shapes) if _cap_shape(s)]
     if not caps:
-        return patches_from_spec(spec, patch_size=patch_size)
+        return conforming_cuts(spec, patches_from_spec(spec, patch_size=patch_size), patch_size)
     rest = [s for i, s in enumerate(spec.shapes) if i not in caps]
     parts = []
     if rest:
