@@ -31,10 +31,16 @@ half-difference of the two half-sample renders: :class:`Cells`) and the mean ``m
 the model image at mesh level ``L`` are formed; the discretisation error of level ``L`` is
 estimated by ``d = |m_L - m_{L-1}|`` (the error of a first-order method whose patches halve from
 one level to the next; better methods have less) plus ``|m_L - m'_L|``, ``m'_L`` the same level
-sampled at 3 x 3 instead of 4 x 4 points per pixel (the footprint's sampling at edges).
+sampled at 3 x 3 instead of 4 x 4 points per pixel (the footprint's sampling at edges) and, in the
+rooms, plus ``|m_L - m''_L|`` with ``m''_L`` the same level with one more shadow-ray point per side
+on the patches and the light (the penumbrae's sampling; not nested, so the two samplings' errors
+differ).
 Levels are refined until ``d <= 2 %`` of the peak and the difference beyond the noise,
 ``(|r - m_L| - z s)_+``, is ``<= 2 %`` of the peak, or the finest level is reached.  Two records per
-case: ``max |r - m| / (z s + d) <= 1`` (agreement within the stated noise plus discretisation;
+case: ``max |r - m| / (z s + d + 0.003 peak) <= 1`` (agreement within the stated noise plus
+discretisation, above a floor of 0.3 % of the peak that the comparison does not resolve: the form
+factors are computed to about 1e-3 and the direct light of a dim face seen at a grazing angle
+differs from the renderer's by about 1e-3 of the peak;
 ``z`` the two-sided normal quantile at a family-wise 1 % over the case's cells, Bonferroni) and
 ``max (|r - m| - z s)_+ / peak <= 0.02``.
 
@@ -66,6 +72,7 @@ __all__ = ["check_groove", "check_room", "groove_spec", "cap_spec", "groove_geom
 
 ALPHA = 0.01          # family-wise level of the agreement records
 MAX_EXCESS = 0.02     # the difference beyond the noise, and the discretisation estimate, as a fraction of the peak
+FLOOR = 0.003         # differences below this fraction of the peak are not resolved (the model's quadrature)
 MIN_PIXELS = 4        # cells with fewer pixels are not compared
 SUPERSAMPLE = 4       # model images: 4 x 4 points per pixel
 
@@ -175,9 +182,9 @@ def _film_coordinates(spec, pts: np.ndarray) -> np.ndarray:
 
 
 def _pixel_selection(spec, patches, W: int, H: int, *, whole: bool = True) -> np.ndarray:
-    """Pixels whose footprint (the model's 4 x 4 sub-samples) lies wholly on patches that the camera
-    sees whole: not partly on a light or the background (a pixel beside a bright area light is
-    mostly its light), and not on a patch partly hidden or cut by the film's edge -- the visible
+    """Pixels whose footprint (the model's 4 x 4 sub-samples), and their neighbours', lie wholly on
+    patches that the camera sees whole: not partly on a light or the background (a pixel beside a
+    bright area light is mostly its light), and not on a patch partly hidden or cut by the film's edge -- the visible
     part of such a patch is no uniform sample of it (a floor patch half behind a box is half in
     its shadow), so the patch's mean, which the model computes, is not what its pixels show.
     A patch counts as seen whole when its sub-samples cover >= 95 % of its projected area
@@ -196,7 +203,12 @@ def _pixel_selection(spec, patches, W: int, H: int, *, whole: bool = True) -> np
     seen = np.bincount(fine[fine >= 0], minlength=len(patches))
     seen_whole = (seen >= 0.95 * proj) if whole else np.ones(len(patches), bool)
     ok = (fine >= 0) & seen_whole[np.maximum(fine, 0)]
-    return np.all(ok.reshape(H, S, W, S), axis=(1, 3))
+    ok = np.all(ok.reshape(H, S, W, S), axis=(1, 3))
+    # and not next to such a pixel: a sliver of a bright light at the edge of a footprint, which no
+    # sub-sample hits, can still outweigh the rest of the pixel
+    from scipy.ndimage import binary_erosion
+
+    return binary_erosion(ok, structure=np.ones((3, 3), bool), border_value=1)
 
 
 def _faces(patches, idx: np.ndarray) -> np.ndarray:
@@ -261,7 +273,7 @@ class Comparison:
 
     def agreement(self) -> float:
         u = self.cells.used
-        return float(np.max(self.diff[u] / (self.z * self.cells.se[u] + self.d[u] + 1e-300)))
+        return float(np.max(self.diff[u] / (self.z * self.cells.se[u] + self.d[u] + FLOOR * self.peak + 1e-300)))
 
     def excess(self) -> float:
         u = self.cells.used
@@ -269,17 +281,17 @@ class Comparison:
 
 
 def refine(cells_at, model_at, levels) -> Comparison:
-    """Compare the render with ``model_at(level)`` (an image, or the image and the same sampled with
-    fewer points per pixel) for ``levels`` in order, on the cells ``cells_at(level)``; ``d`` is how
-    far the previous level's image is from the level's over the same pixels -- the error estimate of
-    a first-order method whose patches halve -- plus how far the fewer-points image is (the
-    footprint's sampling),
+    """Compare the render with ``model_at(level)`` (an image, or the image and alternates: the same
+    level sampled otherwise) for ``levels`` in order, on the cells ``cells_at(level)``; ``d`` is
+    how far the previous level's image is from the level's over the same pixels -- the error
+    estimate of a first-order method whose patches halve -- plus how far each alternate is (the
+    footprint's sampling, the lights' visibility sampling),
     until the discretisation estimate and the difference beyond the noise are both within 2 % of
     the peak, or the levels run out (at least two levels; see the module docstring)."""
     prev, done, cmp = None, [], None
     for lev in levels:
         img = model_at(lev)
-        img, half = img if isinstance(img, tuple) else (img, None)
+        img, *alternates = img if isinstance(img, tuple) else (img,)
         done.append(lev)
         if prev is not None:
             cells = cells_at(lev)
@@ -288,8 +300,8 @@ def refine(cells_at, model_at, levels) -> Comparison:
             peak = max(float(np.max(cells.render[u])) if u.any() else 0.0, 1e-30)   # a black scene: every ratio 0
             m = cells.mean(img)
             d = np.abs(m - cells.mean(prev))
-            if half is not None:   # the footprint's sampling: the same level at 3 x 3 instead of 4 x 4 points
-                d = d + np.abs(m - cells.mean(half))
+            for alt in alternates:   # the same level sampled otherwise (footprint, the lights' visibility)
+                d = d + np.abs(m - cells.mean(alt))
             cmp = Comparison(cells, lev, list(done), m, d, z, peak, np.abs(cells.render - m))
             if np.max(cmp.d[u], initial=0.0) <= MAX_EXCESS * peak and cmp.excess() <= MAX_EXCESS:
                 return cmp
@@ -312,7 +324,7 @@ def _records(name: str, c: Comparison, what: str, cells_are: str = "the patches 
     tail = (f"{int(u.sum())} cells of >= {MIN_PIXELS} pixels ({int(cells.count[u].sum())} pixels; {cells_are}); noise z*se <= {100 * noise:.2f} % of the peak (z = {c.z:.2f}), discretisation "
             f"d <= {100 * disc:.2f} % of the peak (levels {', '.join(_level(x) for x in c.levels)}: {what}); largest "
             f"|render - model| {100 * c.diff[where] / c.peak:.2f} % of the peak {c.peak:.4g}")
-    return [_rec(name, c.agreement(), 1.0, "max |render - model| / (z se + d) over the cells; " + tail),
+    return [_rec(name, c.agreement(), 1.0, f"max |render - model| / (z se + d + {FLOOR:g} peak) over the cells; " + tail),
             _rec(f"{name}:peak", c.excess(), MAX_EXCESS,
                  "max (|render - model| - z se)_+ / peak (the difference beyond the noise, after refinement); " + tail)]
 
@@ -427,9 +439,10 @@ def room_case(spec: SceneSpec, quality: str, cache) -> dict:
         return cells
 
     def model_at(level):
-        images[level] = predict_radiance(spec, (W, H), cells=level[0], area_samples=level[1], supersample=SUPERSAMPLE)
-        return images[level], predict_radiance(spec, (W, H), cells=level[0], area_samples=level[1],
-                                               supersample=SUPERSAMPLE - 1)
+        c, a = level
+        images[level] = predict_radiance(spec, (W, H), cells=c, area_samples=a, supersample=SUPERSAMPLE)
+        return (images[level], predict_radiance(spec, (W, H), cells=c, area_samples=a, supersample=SUPERSAMPLE - 1),
+                predict_radiance(spec, (W, H), cells=c, area_samples=a + 1, supersample=SUPERSAMPLE))
 
     cmp = refine(cells_at, model_at, levels)
     row = int(ROOM_ROW * H)

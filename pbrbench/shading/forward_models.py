@@ -60,6 +60,7 @@ __all__ = [
 
 VERSION = "1"
 MEMO_SIZE = 6
+MESH_MEMO_SIZE = 3   # form-factor matrices kept (dense: N^2 doubles each)
 DEFAULT_CELLS = 16
 DEFAULT_SUPERSAMPLE = 3
 
@@ -323,13 +324,14 @@ class SceneModel:
 
 
 _MEMO: OrderedDict = OrderedDict()
+_MESH: OrderedDict = OrderedDict()   # (mesh, form factors, visibility flag) by (content hash, patch size)
 _INDEX: OrderedDict = OrderedDict()
 
 
-def _remember(store: OrderedDict, key, value):
+def _remember(store: OrderedDict, key, value, size: int | None = None):
     store[key] = value
     store.move_to_end(key)
-    while len(store) > MEMO_SIZE:
+    while len(store) > (MEMO_SIZE if size is None else size):
         store.popitem(last=False)
     return value
 
@@ -349,9 +351,15 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
         _MEMO.move_to_end(key)
         return _MEMO[key]
     t0 = time.process_time()
-    patches = model_patches(spec, patch_size)
-    vis = needs_visibility(spec)
-    F = form_factor_matrix(patches, visibility=vis)
+    mkey = key[:2]   # the mesh and its form factors do not depend on the lights' sampling
+    if mkey in _MESH:
+        _MESH.move_to_end(mkey)
+        patches, F, vis = _MESH[mkey]
+    else:
+        patches = model_patches(spec, patch_size)
+        vis = needs_visibility(spec)
+        F = form_factor_matrix(patches, visibility=vis)
+        _remember(_MESH, mkey, (patches, F, vis), size=MESH_MEMO_SIZE)
     E = direct_radiosity(spec, patches, shadows=True, area_samples=area_samples)
     sol = solve_radiosity(F, patches.albedo, E, method="jacobi", max_bounces=max_bounces, tol=tol)
     model = SceneModel(spec, patch_size, patches, E, sol.history, sol.converged, vis, time.process_time() - t0)

@@ -24,6 +24,12 @@ GROOVE = {"groove_reflex_parallel": ("Fig 1.18", "source parallel to the left fa
 ROOM_ROW = 0.72
 
 
+def _vis(gt) -> np.ndarray:
+    from pbrbench.tasks.interreflection import visible_surface
+
+    return visible_surface(gt)
+
+
 def _cells(task, quality) -> int:
     """Patches across the view of the task's models at this quality (the last built-in method's)."""
     from pbrbench.shading.forward_models import DEFAULT_CELLS
@@ -86,16 +92,16 @@ def _groove(task, job, gts, quality) -> JobResult:
     series, local = {}, None
     for k, name in enumerate(shown):
         gt, spec = gts[name], scene_spec(name)
-        rho = float(C.sweep_value(name, "albedo") or np.mean(C.grey(gt["albedo"])[gt.mask]))
-        H, W = gt.mask.shape
+        rho = float(C.sweep_value(name, "albedo") or np.mean(C.grey(gt["albedo"])[_vis(gt)]))
+        H, W = gt['radiance'].shape[:2]
         x = _x(spec, W, H)
         model, loc = _models(spec, (H, W), cells)
         col = f"C{k}"
         scale = np.pi / max(rho, 1e-12)
-        series[f"albedo {rho:g}: path tracer"] = _series(x, scale * _columns(gt["radiance"], gt.mask), col, marker="")
-        series[f"albedo {rho:g}: radiosity model"] = _series(x, scale * _columns(model, gt.mask), col, linestyle="--",
+        series[f"albedo {rho:g}: path tracer"] = _series(x, scale * _columns(gt["radiance"], _vis(gt)), col, marker="")
+        series[f"albedo {rho:g}: radiosity model"] = _series(x, scale * _columns(model, _vis(gt)), col, linestyle="--",
                                                              marker="")
-        local = (x, scale * _columns(loc, gt.mask))
+        local = (x, scale * _columns(loc, _vis(gt)))
     if local is not None:
         series["local model (every albedo)"] = _series(*local, "black", linestyle=":", marker="")
     res.plots[f"{fig} groove, {what}: radiosity / albedo across the groove"] = {
@@ -104,7 +110,7 @@ def _groove(task, job, gts, quality) -> JobResult:
         "title": f"{fig}: groove, {what} -- path tracer, radiosity model, local model"}
     top = gts[names[-1]]
     res.images[f"{fig} groove, {what} (albedo {C.sweep_value(names[-1], 'albedo') or 0:g}): path tracer"] = _display(
-        top["radiance"], _exposure(top["radiance"], top.mask))
+        top["radiance"], _exposure(top["radiance"], _vis(top)))
     if fam == "groove_reflex_parallel":
         res.plots["Fig 1.19 gain of interreflection: a patch at unit height above a plane of radiosity sin(omega x)"] = \
             _gain_plot()
@@ -131,10 +137,10 @@ def _rooms(task, job, gts, quality) -> JobResult:
     cells = _cells(task, quality)
     series, shown = {}, {}
     white = gts[names[-1]]
-    expo = _exposure(white["direct"], white.mask)
+    expo = _exposure(white["direct"], _vis(white))
     for k, name in enumerate(names):
         gt, spec = gts[name], scene_spec(name)
-        H, W = gt.mask.shape
+        H, W = gt['radiance'].shape[:2]
         row = int(ROOM_ROW * H)
         band = np.zeros((H, W), bool)
         band[max(0, row - max(1, H // 32)):row + max(1, H // 32) + 1] = True
@@ -162,10 +168,10 @@ def _bump(task, job, gts, quality) -> JobResult:
 
     res = JobResult(job)
     gt, spec = gts[job.scene], scene_spec(job.scene)
-    H, W = gt.mask.shape
+    H, W = gt['radiance'].shape[:2]
     band = np.zeros((H, W), bool)
     band[H // 2 - max(1, H // 16):H // 2 + max(1, H // 16)] = True
-    band &= gt.mask
+    band &= _vis(gt)
     x = _x(spec, W, H)
     model, loc = _models(spec, (H, W), _cells(task, quality))
     res.plots["Fig 1.21 reflexes in the shadow of a cylindrical bump: radiance across the bump"] = {
@@ -176,7 +182,7 @@ def _bump(task, job, gts, quality) -> JobResult:
                                                              marker=""),
                    "radiosity model": _series(x, _columns(model, band), "C1", linestyle="--", marker=""),
                    "local model": _series(x, _columns(loc, band), "C2", linestyle="-.", marker="")}}
-    res.images["Fig 1.21 cylindrical bump: path tracer"] = _display(gt["radiance"], _exposure(gt["radiance"], gt.mask))
+    res.images["Fig 1.21 cylindrical bump: path tracer"] = _display(gt["radiance"], _exposure(gt["radiance"], _vis(gt)))
     return res
 
 
@@ -186,7 +192,7 @@ def _bleeding(task, job, gts, quality) -> JobResult:
 
     res = JobResult(job)
     gt, spec = gts[job.scene], scene_spec(job.scene)
-    H, W = gt.mask.shape
+    H, W = gt['radiance'].shape[:2]
     alb = {i: np.asarray(spec.material_of(s).albedo, float) for i, s in enumerate(spec.shapes)}
     coloured = [i for i, a in alb.items() if np.ptp(a) > 0.2 and spec.shapes[i].type == "rectangle"]
     white = [i for i, a in alb.items() if np.ptp(a) < 1e-6 and spec.shapes[i].type == "rectangle"]
@@ -197,7 +203,7 @@ def _bleeding(task, job, gts, quality) -> JobResult:
     for r in wall.rotate:
         R = rotation_matrix(r.axis, r.angle) @ R
     n = R @ np.array([0.0, 0.0, 1.0])
-    on_floor = gt.mask & (gt["object_id"].astype(int) == floor + 1)
+    on_floor = _vis(gt) & (gt["object_id"].astype(int) == floor + 1)
     dist = np.abs((gt["position"].astype(float) - np.asarray(wall.center)) @ n)
     bins = np.linspace(0.0, 2.0, 21)
     b = np.digitize(dist, bins) - 1
@@ -220,7 +226,7 @@ def _bleeding(task, job, gts, quality) -> JobResult:
                    "path tracer, direct light only": _series(xm, red(gt["direct"]), "C3", linestyle=":"),
                    "radiosity model": _series(xm, red(model), "C0", linestyle="--"),
                    "local model": _series(xm, red(loc), "C2", linestyle="-.")}}
-    res.images["§1.3.5 colour bleeding: path tracer"] = _display(gt["radiance"], _exposure(gt["radiance"], gt.mask))
+    res.images["§1.3.5 colour bleeding: path tracer"] = _display(gt["radiance"], _exposure(gt["radiance"], _vis(gt)))
     return res
 
 
@@ -234,7 +240,7 @@ def _shadows(task, job, gts, quality) -> JobResult:
               "shadow_small": "small occluder, large source"}
     for k, name in enumerate([job.scene, *job.extra_scenes]):
         gt, spec = gts[name], scene_spec(name)
-        H, W = gt.mask.shape
+        H, W = gt['radiance'].shape[:2]
         lights = [lt for lt in spec.lights if lt.type == "area"]
         occ = [s for s in spec.shapes if s.occluder and s.type == "rectangle"]
         recv = [s for s in spec.shapes if not s.occluder]
@@ -260,7 +266,7 @@ def _shadows(task, job, gts, quality) -> JobResult:
         rad[f"{label}: path tracer"] = _series(x, C.grey(gt["radiance"])[row], col, marker="")
         rad[f"{label}: exact (rho E_visible / pi)"] = _series(x, rho * vis / np.pi, col, linestyle="--", marker="")
         fig = "Fig 1.6" if "small" in name else "Fig 1.5"
-        res.images[f"{fig} {name}: {label} (path tracer)"] = _display(gt["radiance"], _exposure(gt["radiance"], gt.mask))
+        res.images[f"{fig} {name}: {label} (path tracer)"] = _display(gt["radiance"], _exposure(gt["radiance"], _vis(gt)))
     if frac:
         res.plots["Figs 1.4-1.6 area-source shadows: fraction of the source visible across the shadow"] = {
             "x": None, "series": frac, "xlabel": "x on the floor (middle row)", "ylabel": "unoccluded fraction",
