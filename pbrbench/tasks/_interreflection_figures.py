@@ -107,10 +107,10 @@ def _groove(task, job, gts, quality) -> JobResult:
     res.plots[f"{fig} groove, {what}: radiosity / albedo across the groove"] = {
         "x": None, "series": series, "xlabel": "x across the groove (crease at 0)",
         "ylabel": "B / albedo = pi L / albedo (column means)",
-        "title": f"{fig}: groove, {what} -- path tracer, radiosity model, local model"}
+        "title": f"{fig}: {what}: path tracer, radiosity (--), local (..)"}
     top = gts[names[-1]]
     res.images[f"{fig} groove, {what} (albedo {C.sweep_value(names[-1], 'albedo') or 0:g}): path tracer"] = _display(
-        top["radiance"], _exposure(top["radiance"], _vis(top)))
+        top["radiance"], 0.9 * _exposure(top["radiance"], _vis(top)))
     if fam == "groove_reflex_parallel":
         res.plots["Fig 1.19 gain of interreflection: a patch at unit height above a plane of radiosity sin(omega x)"] = \
             _gain_plot()
@@ -137,7 +137,7 @@ def _rooms(task, job, gts, quality) -> JobResult:
     cells = _cells(task, quality)
     series, shown = {}, {}
     white = gts[names[-1]]
-    expo = _exposure(white["direct"], _vis(white))
+    expo = 0.9 * _exposure(white["radiance"], _vis(white))   # the white room's render just below white
     for k, name in enumerate(names):
         gt, spec = gts[name], scene_spec(name)
         H, W = gt['radiance'].shape[:2]
@@ -150,11 +150,12 @@ def _rooms(task, job, gts, quality) -> JobResult:
         label = "black room" if "black" in name else ("white room" if "white" in name else name)
         series[f"{label}: path tracer"] = _series(x, _columns(gt["radiance"], band), col, marker="")
         series[f"{label}: radiosity model"] = _series(x, _columns(model, band), col, linestyle="--", marker="")
-        series[f"{label}: local model"] = _series(x, _columns(loc, band), col, linestyle=":", marker="")
         shown[label] = (gt["radiance"], loc)
+    # the local model is the same for both rooms (the sources are scaled so that the direct light matches)
+    series["local model (either room)"] = _series(x, _columns(loc, band), "black", linestyle=":", marker="")
     res.plots["Fig 1.17 black room vs white room: a section (image rows ~72 % down, through the boxes)"] = {
         "x": None, "series": series, "xlabel": "image column", "ylabel": "radiance (band of rows)",
-        "title": "Fig 1.17: same direct light; the white room adds bright reflexes, the black room keeps dark shadows"}
+        "title": "Fig 1.17: black vs white room, one section through the boxes"}
     for label, (img, _) in shown.items():
         res.images[f"Fig 1.17 {label}: path tracer (one exposure for both rooms)"] = _display(img, expo)
     if shown:
@@ -176,13 +177,21 @@ def _bump(task, job, gts, quality) -> JobResult:
     model, loc = _models(spec, (H, W), _cells(task, quality))
     res.plots["Fig 1.21 reflexes in the shadow of a cylindrical bump: radiance across the bump"] = {
         "x": None, "xlabel": "x (the bump's axis at 0, its shadow at -0.6 < x < -0.3)", "ylabel": "radiance (middle rows)",
-        "title": "Fig 1.21: the shadowed plane sees the lit plane -- a reflex the local model misses",
+        "title": "Fig 1.21: the shadowed plane sees the lit plane: a reflex",
         "series": {"path tracer (global)": _series(x, _columns(gt["radiance"], band), "C0", marker=""),
                    "path tracer, direct light only": _series(x, _columns(gt["direct"], band), "C0", linestyle=":",
                                                              marker=""),
                    "radiosity model": _series(x, _columns(model, band), "C1", linestyle="--", marker=""),
                    "local model": _series(x, _columns(loc, band), "C2", linestyle="-.", marker="")}}
-    res.images["Fig 1.21 cylindrical bump: path tracer"] = _display(gt["radiance"], _exposure(gt["radiance"], _vis(gt)))
+    full = res.plots["Fig 1.21 reflexes in the shadow of a cylindrical bump: radiance across the bump"]
+    zoom = {}
+    for name, ser in full["series"].items():
+        keep = [k for k, v in enumerate(ser["x"]) if -0.7 <= v <= -0.25]
+        zoom[name] = dict(ser, x=[ser["x"][k] for k in keep], y=[ser["y"][k] for k in keep], marker="o")
+    res.plots["Fig 1.21 reflexes in the shadow of a cylindrical bump: inside the shadow (zoom)"] = dict(
+        full, series=zoom, xlabel="x (the cast shadow: -0.6 < x < -0.3)",
+        title="Fig 1.21: inside the shadow, light only from the lit plane and the bump")
+    res.images["Fig 1.21 cylindrical bump: path tracer"] = _display(gt["radiance"], 0.9 * _exposure(gt["radiance"], _vis(gt)))
     return res
 
 

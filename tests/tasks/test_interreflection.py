@@ -69,7 +69,7 @@ def test_room_and_groove_plots_name_their_chapter_figures(rooms):
     res = run_task(TASK, Job(TASK.name, "room_white", "global", (("plot", "rooms"),), ("room_black",)), rooms)
     assert not res.scores and any(k.startswith("Fig 1.17") for k in res.plots)
     (section,) = res.plots.values()
-    assert {"white room: path tracer", "black room: local model"} <= set(section["series"])
+    assert {"white room: path tracer", "black room: radiosity model", "local model (either room)"} <= set(section["series"])
     names = ["groove_reflex_parallel[albedo=0.1]", "groove_reflex_parallel[albedo=0.9]"]
     gts = {n: fine_gt(n, res=(32, 16)) for n in names}
     res = run_task(TASK, Job(TASK.name, names[1], "global", (("plot", "groove"),), (names[0],)), gts)
