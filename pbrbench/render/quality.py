@@ -97,11 +97,15 @@ PRESETS: dict[str, Quality] = {
         "draft", 0.25, 1 / 16, short_subset=True, sweep_keep=2,
         # the regression run must stay short (every job also runs its two half-sample replicates):
         # iteration budgets of the iterative SFS methods halved, Mitsunaga-Nayar with a fixed
-        # degree instead of its held-out degree search (about 20x slower)
+        # degree instead of its held-out degree search (about 20x slower); coarser meshes for the
+        # radiosity models
         algorithm_options=_frozen({
             "sfs/horn1989": {"max_iter": 50}, "sfs/horn1989+estimated_light": {"max_iter": 50},
             "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
             "hdr/mitsunaga1999": {"degree": 5},
+            # the interreflection task's forward models: 8 patches across the view instead of 16
+            **{f"interreflection/{m}": {"cells": 8}
+               for m in ("local", "radiosity:1", "radiosity:2", "radiosity:4", "radiosity")},
         }),
         description="CI: resolution / 4 (at least 32 px), spp / 16, short scene lists, two values per sweep"),
     "standard": Quality("standard", 1.0, 1.0, noise_target=(0.01, 0.03), max_spp_factor=2.0,

@@ -177,11 +177,14 @@ def load_figures(run_dir: Path) -> dict[str, list[dict]]:
 
 
 CHAPTER = re.compile(r"^(?:linear:)?Figs? (\d+)\.(\d+)")
+SECTION = re.compile(r"^(?:linear:)?§(\d+)\.(\d+)(?:\.(\d+))?")   # an effect the chapter names without a figure
 
 
 def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
     """Every figure whose name starts with a chapter figure number (``Fig 1.18 ...``, ``Figs
-    1.4-1.6 ...``), ordered by that number: the chapter gallery."""
+    1.4-1.6 ...``), ordered by that number, then those that start with a section of the chapter
+    (``§1.3.5 colour bleeding ...``: effects the text describes without a figure), in section
+    order after the figures of that chapter: the chapter gallery."""
     out = []
     for task, jobs in figures.items():
         for j in jobs:
@@ -189,7 +192,13 @@ def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
                 for f in j[kind]:
                     m = CHAPTER.match(f["name"])
                     if m:
-                        out.append(dict(f, task=task, job=j["label"], kind=kind, order=(int(m.group(1)), int(m.group(2)))))
+                        order = (int(m.group(1)), 0, int(m.group(2)), 0)
+                    else:
+                        m = SECTION.match(f["name"])
+                        if not m:
+                            continue
+                        order = (int(m.group(1)), 1, int(m.group(2)), int(m.group(3) or 0))
+                    out.append(dict(f, task=task, job=j["label"], kind=kind, order=order))
     return sorted(out, key=lambda f: (f["order"], f["name"]))
 
 

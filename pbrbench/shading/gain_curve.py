@@ -35,6 +35,8 @@ A. Zisserman, "Reflections on shading", IEEE PAMI 13(7), 1991.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_number, check_positive
@@ -44,8 +46,6 @@ __all__ = [
     "gain_response",
     "gain_curve",
     "gain_measurement_spec",
-    "gain_mitsuba_dict",
-    "measure_gain_mitsuba",
 ]
 
 
@@ -86,8 +86,18 @@ def gain_response(omega, slant, *, half_size: float | None = None) -> complex:
     X = np.inf if half_size is None else check_positive(half_size, "half_size")
     lo = max(x0, -X)
 
-    def k(x):
-        return float(gain_kernel(x, s, half_size=half_size))
+    ss, cs = math.sin(s), math.cos(s)
+    Y = None if half_size is None else float(half_size)
+
+    def k(x):  # gain_kernel for one point, without the argument checks (QUADPACK calls it thousands of times)
+        a2 = 1.0 + x * x
+        vis = max(x * ss + cs, 0.0)
+        if Y is None:
+            return vis / (2.0 * a2 ** 1.5)
+        if abs(x) > Y:
+            return 0.0
+        a = math.sqrt(a2)
+        return vis * (Y / (a2 * (a2 + Y * Y)) + math.atan(Y / a) / a ** 3) / math.pi
 
     opts = dict(limit=400, epsabs=1e-12, epsrel=1e-10)
     re = im = 0.0
@@ -122,7 +132,8 @@ def gain_curve(omegas, slants=None) -> np.ndarray:
     return np.array([[abs(gain_response(w, s)) for w in om] for s in sl])
 
 
-# ------------------------------------------------------------------ a Mitsuba measurement
+# ------------------------------------------------------------------ a measurement to render
+# (rendered by pbrbench.render.proofs_interreflection.measure_gain_mitsuba: shading never imports Mitsuba)
 def gain_measurement_spec(omega: float, slant: float, *, phase: float = 0.0, plane_half_size: float = 30.0,
                           radiance: float = 1.0, modulation: float = 0.5, patch_half_size: float = 0.01,
                           texels: int = 8192) -> dict:
@@ -150,52 +161,3 @@ def gain_measurement_spec(omega: float, slant: float, *, phase: float = 0.0, pla
                       "half_size": float(patch_half_size)},
             "omega": w, "slant": s, "phase": float(phase), "modulation": m, "mean_radiance": L0,
             "expected_irradiance": float(expected), "H": H}
-
-
-def gain_mitsuba_dict(mi, desc: dict, *, spp: int = 1 << 18) -> dict:
-    """The Mitsuba scene dict of :func:`gain_measurement_spec` (direct emission only: ``max_depth = 1``)."""
-    T = mi.ScalarTransform4f
-    X = desc["plane"]["half_size"]
-    tex = np.asarray(desc["plane"]["radiance"], np.float32)
-    bmp = np.ascontiguousarray(np.repeat(np.repeat(tex[None, :, None], 2, axis=0), 3, axis=2))
-    c, n = desc["patch"]["center"], desc["patch"]["normal"]
-    h = desc["patch"]["half_size"]
-    return {
-        "type": "scene",
-        "integrator": {"type": "path", "max_depth": 1},
-        "plane": {"type": "rectangle", "to_world": T().scale([X, X, 1.0]),
-                  "bsdf": {"type": "diffuse", "reflectance": {"type": "rgb", "value": [0.0, 0.0, 0.0]}},
-                  "emitter": {"type": "area", "radiance": {"type": "bitmap", "bitmap": mi.Bitmap(bmp), "raw": True,
-                                                             "filter_type": "bilinear", "wrap_mode": "clamp"}}},
-        "patch": {"type": "rectangle",
-                  "to_world": T().look_at(origin=c.tolist(), target=(c + n).tolist(), up=[0.0, 1.0, 0.0]) @ T().scale([h, h, 1.0]),
-                  "sensor": {"type": "irradiancemeter",
-                             "film": {"type": "hdrfilm", "width": 1, "height": 1, "pixel_format": "rgb",
-                                      "component_format": "float32", "rfilter": {"type": "box"}},
-                             "sampler": {"type": "independent", "sample_count": int(spp)}}},
-    }
-
-
-def measure_gain_mitsuba(omega: float, slant: float, *, spp: int = 1 << 18, seed: int = 0, **kw) -> dict:
-    """Render the four phases 0, pi/2, pi, 3 pi/2 and recover the gain from the irradiance differences.
-
-    ``E(0) - E(pi) = 2 pi L0 m Im H`` and ``E(pi/2) - E(3pi/2) = 2 pi L0 m Re H``.  Returns the
-    measured and the expected (finite-plane) gain and the four irradiances.  Imports Mitsuba
-    through :func:`pbrbench.render.variant.mitsuba`.
-    """
-    from pbrbench.render.variant import mitsuba
-
-    mi = mitsuba()
-    E, exp = [], []
-    for k, ph in enumerate((0.0, np.pi / 2, np.pi, 1.5 * np.pi)):
-        desc = gain_measurement_spec(omega, slant, phase=ph, **kw)
-        scene = mi.load_dict(gain_mitsuba_dict(mi, desc, spp=spp))
-        img = np.array(mi.render(scene, seed=seed + k), dtype=float)
-        E.append(float(img.reshape(-1, img.shape[-1])[0, :3].mean()))
-        exp.append(desc["expected_irradiance"])
-        del scene
-    L0, m = desc["mean_radiance"], desc["modulation"]
-    im = (E[0] - E[2]) / (2 * np.pi * L0 * m)
-    re = (E[1] - E[3]) / (2 * np.pi * L0 * m)
-    return {"gain": float(np.hypot(re, im)), "expected_gain": float(abs(desc["H"])), "irradiance": np.array(E),
-            "expected_irradiance": np.array(exp), "response": complex(re, im), "expected_response": desc["H"]}

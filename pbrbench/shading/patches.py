@@ -7,6 +7,12 @@ Geometry follows the Mitsuba builder (:mod:`pbrbench.scene.mitsuba_dict`) exactl
   ``ceil(size / patch_size)`` cells per side;
 * ``box``: the six faces of ``[-1, 1]^3`` (outward normals) scaled by ``size / 2``, rotated and
   translated; each face cut like a rectangle;
+* ``cylinder``: Mitsuba's open tube from ``p0`` to ``p1`` (no end caps, outward normals) as an
+  inscribed prism of ``max(8, ceil(2 pi radius / patch_size))`` planar facets around (vertices on
+  the cylinder, the first at azimuth 0 of the frame ``u = `` the world axis least aligned with
+  the cylinder's, made orthogonal to it, ``v = a x u``), each cut into ``ceil(length / patch_size)``
+  patches along; its area and normals differ from the round tube's by ``O(1 / facets^2)`` and
+  ``pi / facets``;
 * ``heightfield``: the triangle mesh of :func:`pbrbench.scene.mitsuba_dict.heightfield_mesh`
   (same vertex layout, same triangles, same mask) evaluated on a coarser grid of
   ``cells + 1`` vertices per side, then rotated about the world origin (as the builder does);
@@ -18,8 +24,8 @@ of their normal only (Mitsuba's ``diffuse`` BSDF is black from behind) and every
 Area lights are not patches but their rectangles occlude, as they do in Mitsuba.
 
 Only diffuse materials with a constant albedo or a Mondrian texture (looked up at the patch
-centroid's uv) are accepted; spheres, cylinders, disks, image textures and glossy materials are
-refused with a ``ValueError`` naming the shape.
+centroid's uv) are accepted; spheres, disks, image textures and glossy materials are refused with a
+``ValueError`` naming the shape.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ from pbrbench.shading.raycast import Occluders, build_occluders
 
 __all__ = ["Patches", "make_patches", "patches_from_spec", "rotation_matrix", "SUPPORTED_SHAPES"]
 
-SUPPORTED_SHAPES = ("rectangle", "box", "heightfield")
+SUPPORTED_SHAPES = ("rectangle", "box", "cylinder", "heightfield")
 
 
 @dataclass(frozen=True, eq=False)
@@ -191,6 +197,36 @@ def _cells(length: float, patch_size: float) -> int:
     return max(1, int(math.ceil(length / patch_size - 1e-9)))
 
 
+def _cylinder_cells(shape, patch_size: float) -> tuple[int, int]:
+    p0, p1 = np.asarray(shape.p0, float), np.asarray(shape.p1, float)
+    length = float(np.linalg.norm(p1 - p0))
+    return max(8, _cells(2 * math.pi * shape.radius, patch_size)), _cells(length, patch_size)
+
+
+def _cylinder_facets(shape, patch_size: float):
+    """Per facet around the tube: its ``n_along`` quads (n_along, 4, 3), counter-clockwise seen
+    from outside, and the whole facet strip (4, 3)."""
+    p0, p1 = np.asarray(shape.p0, float), np.asarray(shape.p1, float)
+    axis = p1 - p0
+    length = float(np.linalg.norm(axis))
+    if length < 1e-12:
+        raise ValueError("cylinder: p0 and p1 coincide; give a cylinder of non-zero length")
+    a = axis / length
+    e = np.eye(3)[int(np.argmin(np.abs(a)))]
+    u = e - (e @ a) * a
+    u /= np.linalg.norm(u)
+    v = np.cross(a, u)
+    n_around, n_along = _cylinder_cells(shape, patch_size)
+    phi = 2 * np.pi * np.arange(n_around + 1) / n_around
+    ring = shape.radius * (np.cos(phi)[:, None] * u + np.sin(phi)[:, None] * v)
+    t = np.linspace(0.0, 1.0, n_along + 1)[:, None] * axis
+    for k in range(n_around):
+        r0, r1 = ring[k], ring[k + 1]
+        q = np.stack([p0 + r0 + t[:-1], p0 + r1 + t[:-1], p0 + r1 + t[1:], p0 + r0 + t[1:]], axis=1)
+        strip = np.stack([p0 + r0, p0 + r1, p1 + r1, p1 + r0])
+        yield q, strip
+
+
 def _albedo_of(spec, i: int, shape, uv, n: int):
     mat = spec.material_of(shape)
     if mat.type != "diffuse":
@@ -231,7 +267,7 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
     Raises
     ------
     ValueError
-        For a shape the model does not support (sphere, cylinder, disk), a non-diffuse
+        For a shape the model does not support (sphere, disk), a non-diffuse
         material, an unsupported texture, or too many patches.
     """
     check_positive(patch_size, "patch_size")
@@ -245,6 +281,9 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
             count += 2 * sum(_cells(u, patch_size) * _cells(v, patch_size) for u, v in ((a, b), (b, c), (c, a)))
         elif shape.type == "heightfield":
             count += 2 * (heightfield_cells or _cells(2 * shape.half_width, patch_size)) ** 2
+        elif shape.type == "cylinder":
+            n_around, n_along = _cylinder_cells(shape, patch_size)
+            count += n_around * n_along
     if count > max_patches:
         raise ValueError(f"patch_size={patch_size}: gives {count} patches, more than max_patches={max_patches}; "
                          "use a larger patch_size (or raise max_patches: memory grows as N^2)")
@@ -259,6 +298,23 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
                              f"{', '.join(SUPPORTED_SHAPES)} (a heightfield may use the 'spherical_cap' surface); "
                              "remove the shape or approximate it by a heightfield")
         R = _rotations(shape.rotate)
+        if shape.type == "cylinder":
+            if not isinstance(spec.material_of(shape).albedo, tuple):
+                raise ValueError(f"shapes[{i}] (cylinder): textured cylinders are not supported by the radiosity model; "
+                                 "use a constant albedo")
+            for quads, strip in _cylinder_facets(shape, patch_size):
+                pts = quads[:, ::-1] if shape.flip_normals else quads
+                verts.append(pts)
+                nvs.append(np.full(len(pts), 4))
+                rhos.append(_albedo_of(spec, i, shape, None, len(pts)))
+                oids.append(np.full(len(pts), i))
+                fids.append(np.full(len(pts), face))
+                gis.append(np.full((len(pts), 2), -1))
+                full = strip[::-1] if shape.flip_normals else strip
+                occ_tris.append(full[[[0, 1, 2], [0, 2, 3]]].reshape(2, 3, 3))
+                occ_groups.append(np.full(2, face))
+                face += 1
+            continue
         if shape.type == "rectangle":
             sx, sy = shape.size
             q, uv = _grid_quads(_cells(sx, patch_size), _cells(sy, patch_size))

@@ -12,7 +12,6 @@ from pbrbench.shading.gain_curve import (
     gain_kernel,
     gain_measurement_spec,
     gain_response,
-    measure_gain_mitsuba,
 )
 
 
@@ -61,22 +60,3 @@ def test_measurement_spec_expected_irradiance():
         gain_response(1.0, 2.0)
     with pytest.raises(ValueError, match="omegas"):
         gain_curve([-1.0])
-
-
-@pytest.mark.render
-@pytest.mark.slow
-def test_mitsuba_measures_the_gain():
-    """Four phases rendered with an irradiance meter.
-
-    Cosine-sampled estimate of ``E = pi mean(L)``: ``sd(E) <= pi L0 m / sqrt(spp)`` since
-    ``|L - L0| <= L0 m``; each component of ``H`` is a difference of two phases over
-    ``2 pi L0 m``, so its sd is at most ``sqrt(2) / (2 sqrt(spp))``.
-    """
-    spp = 1 << 18
-    r = measure_gain_mitsuba(1.0, 0.7, spp=spp)  # L0 = 1, m = 0.5 (the defaults)
-    sd_E = np.pi * 1.0 * 0.5 / np.sqrt(spp)
-    sd_H = np.sqrt(2) / (2 * np.sqrt(spp))
-    np.testing.assert_allclose(r["irradiance"], r["expected_irradiance"], atol=5 * sd_E)
-    d = r["response"] - r["expected_response"]
-    assert abs(d.real) < 5 * sd_H and abs(d.imag) < 5 * sd_H
-    assert r["gain"] == pytest.approx(r["expected_gain"], abs=10 * sd_H)

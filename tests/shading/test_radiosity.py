@@ -94,7 +94,7 @@ def test_heightfield_patches_follow_the_mitsuba_mesh_layout():
 
 
 def test_unsupported_shapes_and_materials_are_refused():
-    with pytest.raises(ValueError, match=r"shapes\[1\] is a 'sphere'.*supports rectangle, box, heightfield"):
+    with pytest.raises(ValueError, match=r"shapes\[1\] is a 'sphere'.*supports rectangle, box, cylinder, heightfield"):
         patches_from_spec(scene([{"type": "rectangle"}, {"type": "sphere"}]))
     with pytest.raises(ValueError, match=r"shapes\[0\] \(rectangle\): material type 'plastic'"):
         patches_from_spec(scene([{"type": "rectangle", "material": {"type": "plastic"}}]))
@@ -104,6 +104,26 @@ def test_unsupported_shapes_and_materials_are_refused():
         patches_from_spec(scene([{"type": "rectangle", "size": [10, 10]}]), patch_size=0.01)
     with pytest.raises(ValueError, match="degenerate"):
         make_patches(np.array([[[0, 0, 0], [1, 1, 1], [2, 2, 2.0]]]))
+
+
+def test_cylinder_is_an_inscribed_prism_with_outward_normals():
+    spec = scene([{"type": "cylinder", "p0": [0, -1, 0.2], "p1": [0, 2, 0.2], "radius": 0.5}])
+    p = patches_from_spec(spec, patch_size=0.1)
+    n_around = int(np.ceil(2 * np.pi * 0.5 / 0.1))
+    assert len(p) == n_around * 30
+    axis_pt = np.array([0, 0, 0.2])
+    radial = p.centres - axis_pt
+    radial[:, 1] = 0
+    assert np.all(np.sum(p.normals * radial, 1) > 0.99 * np.linalg.norm(radial, axis=1))  # outward
+    v = p.vertices.reshape(-1, 3) - axis_pt
+    np.testing.assert_allclose(np.hypot(v[:, 0], v[:, 2]), 0.5, rtol=1e-12)  # vertices on the tube
+    # the prism's area: length x perimeter of the inscribed polygon
+    assert p.areas.sum() == pytest.approx(3.0 * 2 * n_around * 0.5 * np.sin(np.pi / n_around), rel=1e-12)
+    flipped = patches_from_spec(scene([{"type": "cylinder", "p0": [0, -1, 0.2], "p1": [0, 2, 0.2], "radius": 0.5,
+                                        "flip_normals": True}]), patch_size=0.1)
+    np.testing.assert_allclose(flipped.normals, -p.normals, atol=1e-12)
+    with pytest.raises(ValueError, match="textured cylinders"):
+        patches_from_spec(scene([{"type": "cylinder", "material": {"type": "diffuse", "albedo": {"type": "checker"}}}]))
 
 
 def test_mondrian_albedo_is_looked_up_at_patch_centres():
@@ -309,8 +329,57 @@ def test_image_shows_lights_and_the_environment():
     assert img[10, 10, 0] == pytest.approx(1.0)  # B / pi
     assert img[0, 0, 0] == pytest.approx(0.25)  # the environment
     assert img[10, 16, 0] == pytest.approx(7.0)  # the light's front
-    with pytest.raises(ValueError, match="orthographic cameras only"):
-        patch_index_image(scene([{"type": "rectangle"}], camera={"type": "perspective"}), p)
+
+
+def _brute_force_index(spec, patches, W, H):
+    """The nearest front-facing triangle along each perspective pixel ray, by testing every triangle."""
+    cam = spec.camera
+    o = np.asarray(cam.origin, float)
+    d = np.asarray(cam.target, float) - o
+    d /= np.linalg.norm(d)
+    right = np.cross(d, cam.up)
+    right /= np.linalg.norm(right)
+    up = np.cross(right, d)
+    t = np.tan(np.radians(cam.fov) / 2)
+    xs = t * (2 * (np.arange(W) + 0.5) / W - 1)
+    ys = t * (1 - 2 * (np.arange(H) + 0.5) / H) * H / W
+    tris, owner = patches.triangles()
+    X, Y = np.meshgrid(xs, ys)
+    r = d + X[..., None] * right + Y[..., None] * up
+    out = np.full((H, W), -1)
+    best = np.full((H, W), np.inf)
+    for k, tri in enumerate(tris):  # plane hit, then the point inside all three edges (same side as the normal)
+        n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+        den = r @ n
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dist = (n @ (tri[0] - o)) / den
+        q = o + dist[..., None] * r
+        inside = np.ones((H, W), bool)
+        for a, b in ((0, 1), (1, 2), (2, 0)):
+            inside &= np.cross(tri[b] - tri[a], q - tri[a]) @ n >= -1e-9 * (n @ n)
+        win = inside & (dist > 0) & (dist < best)
+        best[win] = dist[win]
+        out[win] = np.where(den[win] < 0, owner[k], -1 - 10**9)
+    return out
+
+
+def test_perspective_index_image_matches_brute_force_rays():
+    spec = scene([{"type": "box", "center": [0.2, -0.1, 0], "size": [1, 0.8, 0.6],
+                   "rotate": [{"axis": [0, 1, 0], "angle": 30}]},
+                  {"type": "rectangle", "center": [0, 0, -1], "size": [4, 4]}],
+                 camera={"type": "perspective", "origin": [0.3, 0.4, 3.0], "target": [0, 0, 0], "fov": 50.0},
+                 render={"resolution": [24, 18]})
+    p = patches_from_spec(spec, patch_size=0.5)
+    idx = patch_index_image(spec, p)
+    want = _brute_force_index(spec, p, 24, 18)
+    assert (idx >= 0).mean() > 0.9
+    # pixel centres on an edge between two triangles may go either way
+    assert (idx != want).mean() < 0.01
+    # a triangle through the camera's plane: the floor under the camera, seen by exact rays
+    spec2 = scene([{"type": "rectangle", "center": [0, -1, 0], "size": [8, 8], "rotate": [{"axis": [1, 0, 0], "angle": -90}]}],
+                  camera={"type": "perspective", "origin": [0.0, 0.0, 3.0], "fov": 60.0}, render={"resolution": 16})
+    p2 = patches_from_spec(spec2, patch_size=8.0)
+    np.testing.assert_array_equal(patch_index_image(spec2, p2), _brute_force_index(spec2, p2, 16, 16))
 
 
 def test_modules_import_numpy_only():
