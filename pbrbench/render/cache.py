@@ -166,7 +166,9 @@ def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
     """The last line of defence against a useless render: refuse (UserError naming the scene) a
     ground truth whose radiance is non-finite anywhere or zero in every pixel (every scene has a
     light that emits: the schema refuses the others).  Such a render is never cached.  The message
-    says whether the camera sees geometry (the coverage pass) or not."""
+    says whether the camera sees geometry (the coverage pass) or not.  A black render of black
+    surfaces (the albedo pass zero wherever the camera sees geometry, e.g. the albedo-0 end of a
+    sweep, the local model's reference) is the right answer and passes."""
     where = f"scene {spec.name!r}" + (f" ({spec.source})" if spec.source else "")
     for name in ("radiance", "direct"):
         if name in gt:
@@ -176,7 +178,12 @@ def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
                                 "numbers are out of the renderer's range (check sizes, positions and powers); not cached")
     if (gt["radiance"] > 0).any():
         return
-    if "coverage" in gt and not (gt["coverage"] > 0).any():
+    seen = (gt["coverage"] > 0) if "coverage" in gt else None
+    if seen is not None and seen.any() and "albedo" in gt:
+        albedo = np.asarray(gt["albedo"])
+        if not (albedo[seen.reshape(albedo.shape[:2])] > 0).any():
+            return  # every visible surface is black: zero radiance is correct
+    if seen is not None and not seen.any():
         raise UserError(f"{where}: the rendered radiance is zero in every pixel and the camera sees no geometry: check "
                         "camera.origin / target / half_width and that the shapes lie between near_clip and far_clip; "
                         "not cached")

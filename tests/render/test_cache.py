@@ -123,3 +123,20 @@ def test_cache_cli(tmp_path, capsys, monkeypatch, action):
     assert main(["cache", action, "--cache", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert ("entries  1" in out) if action == "info" else ("removed 1 entries" in out)
+
+
+def test_black_ground_truth_is_refused_unless_every_visible_surface_is_black():
+    from pbrbench.render.cache import check_ground_truth
+    from pbrbench.render.groundtruth import GroundTruth
+    from pbrbench.errors import UserError
+
+    cov = np.ones((4, 4), np.float32)
+    zero = np.zeros((4, 4, 3), np.float32)
+    black = GroundTruth({"radiance": zero, "coverage": cov, "albedo": zero}, {})
+    check_ground_truth(spec(), black)  # albedo 0 everywhere seen: black is the right answer
+    grey = GroundTruth({"radiance": zero, "coverage": cov, "albedo": zero + 0.5}, {})
+    with pytest.raises(UserError, match="no light reaches the visible surfaces"):
+        check_ground_truth(spec(), grey)
+    nothing = GroundTruth({"radiance": zero, "coverage": 0 * cov, "albedo": zero}, {})
+    with pytest.raises(UserError, match="sees no geometry"):
+        check_ground_truth(spec(), nothing)
