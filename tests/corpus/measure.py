@@ -47,7 +47,8 @@ def expectations(path: Path) -> dict:
 
 
 def run_cli(args: list[str], *, src: Path = ROOT, env: dict | None = None, timeout: float = 60, cwd=None):
-    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_")}
+    # DRJIT_LIBLLVM_PATH: set in this process by its own variant choice, not by the user; a case sets it itself
+    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_") and k != "DRJIT_LIBLLVM_PATH"}
     e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0")
     e.update(env or {})
     # cwd outside any checkout: ``python -m`` puts the working directory first on sys.path
@@ -115,7 +116,8 @@ def _faulty(kind, under, budget=None):
 
 
 def _run(cmd, src, env=None, timeout=300, cwd=None):
-    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_")}
+    # DRJIT_LIBLLVM_PATH: set in this process by its own variant choice, not by the user; a case sets it itself
+    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_") and k != "DRJIT_LIBLLVM_PATH"}
     e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0", **(env or {}))
     try:
         return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=cwd or tempfile.gettempdir())
