@@ -126,9 +126,9 @@ def test_cache_cli(tmp_path, capsys, monkeypatch, action):
 
 
 def test_black_ground_truth_is_refused_unless_every_visible_surface_is_black():
+    from pbrbench.errors import UserError
     from pbrbench.render.cache import check_ground_truth
     from pbrbench.render.groundtruth import GroundTruth
-    from pbrbench.errors import UserError
 
     cov = np.ones((4, 4), np.float32)
     zero = np.zeros((4, 4, 3), np.float32)

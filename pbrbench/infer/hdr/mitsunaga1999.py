@@ -20,7 +20,7 @@ from pbrbench.infer.hdr.response import CameraResponse
 
 __all__ = ["calibrate_mitsunaga1999"]
 
-VERSION = "2"  # order by the paper's rule, monotone fits, dark end constrained
+VERSION = "3"  # order by the paper's rule, monotone fits, dark end constrained, least-squares ratio update
 
 
 _GRID = 65  # points on which the monotonicity of the fitted polynomial is enforced
@@ -93,8 +93,11 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
         \varepsilon = \sum_{i,k} \left[ f^{-1}(M_{i,k}) - R_k\, f^{-1}(M_{i,k+1}) \right]^2,
         \qquad R_k = \Delta t_k / \Delta t_{k+1},
 
-    alternating the linear solve for ``c`` with the ratio update (their eq. 9, in the log:
-    ``\ln R_k`` = the mean of ``\ln(f^{-1}(M_{i,k}) / f^{-1}(M_{i,k+1}))``).  Response and
+    alternating the linear solve for ``c`` with the ratio update that minimises the same
+    ``\varepsilon`` for fixed ``c``, ``R_k = \sum_i f^{-1}(M_{i,k}) f^{-1}(M_{i,k+1}) / \sum_i
+    f^{-1}(M_{i,k+1})^2`` (their eq. 9 averages the per-pixel ratios instead, which the dark
+    pixels, where ``f^{-1}`` is least determined, dominate: on a 14-exposure bracket of a 32x32
+    render it let the ratios drift from 2 to between 1.6 and 2.1 and cost 25x in log2 RMSE).  Response and
     ratios are ambiguous up to ``f^{-1} -> (f^{-1})^\gamma, R -> R^\gamma`` (Grossberg & Nayar);
     the stated span ``\sum_k \ln R_k = \ln(\Delta t_0 / \Delta t_{K-1})`` is kept fixed, which
     removes that ambiguity while the individual ratios are re-estimated.  Ratios are shared by
@@ -187,12 +190,12 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
             # unconstrained fits, the final fit below is constrained to be monotonic
             coefs = [_mn_fit(m, np.exp(lnR), deg, black, m_first, False) for m in moms]
             num = np.zeros(K - 1)
-            cnt = np.zeros(K - 1)
-            for pa, rpb, kk in residuals(coefs, np.zeros(K - 1)):
-                ok = (pa > 0) & (rpb > 0)
-                num += np.bincount(kk[ok], weights=np.log(pa[ok] / rpb[ok]), minlength=K - 1)
-                cnt += np.bincount(kk[ok], minlength=K - 1)
-            new = np.where(cnt > 0, num / np.maximum(cnt, 1.0), lnR)
+            den = np.zeros(K - 1)
+            for pa, pb, kk in residuals(coefs, np.zeros(K - 1)):
+                num += np.bincount(kk, weights=pa * pb, minlength=K - 1)
+                den += np.bincount(kk, weights=pb * pb, minlength=K - 1)
+            good = (num > 0) & (den > 0)
+            new = np.where(good, np.log(np.where(good, num, 1.0) / np.where(good, den, 1.0)), lnR)
             new += (span - new.sum()) / (K - 1)
             change = np.max(np.abs(new - lnR))
             lnR = new
