@@ -12,7 +12,8 @@ from pathlib import Path
 def add_quality(p, default="standard"):
     from pbrbench.render.quality import PRESETS
 
-    descr = "; ".join(f"{q.name}: {q.description}" for q in PRESETS.values() if q.description)
+    # argparse %-formats help strings: a literal % in a description must be doubled
+    descr = "; ".join(f"{q.name}: {q.description}" for q in PRESETS.values() if q.description).replace("%", "%%")
     p.add_argument("--quality", choices=list(PRESETS), default=default,
                    help=f"quality profile (default: {default}). {descr}")
 

@@ -1,0 +1,26 @@
+"""Every command's --help prints (argparse formats help strings with %: a stray % in a help text
+is a traceback for the user who asks for help)."""
+
+import argparse
+
+import pytest
+
+from pbrbench.cli.main import build_parser, main
+
+
+def _commands():
+    parser = build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sorted(sub.choices)
+
+
+@pytest.mark.parametrize("command", _commands())
+def test_every_command_help_prints(command, capsys):
+    assert main([command, "--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage:") and command in out
+
+
+def test_top_level_help_prints(capsys):
+    assert main(["--help"]) == 0
+    assert "usage:" in capsys.readouterr().out
