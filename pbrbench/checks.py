@@ -22,6 +22,7 @@ from collections.abc import Callable, Iterable, Mapping
 import numpy as np
 
 __all__ = [
+    "as_array",
     "as_float_array",
     "call_method",
     "check_finite",
@@ -29,21 +30,35 @@ __all__ = [
     "check_mask",
     "check_method",
     "check_number",
+    "check_pixel_size",
     "check_positive",
+    "check_seed",
+    "check_tolerance",
     "method_options",
 ]
 
 
-def as_float_array(x, name: str, *, ndim: Iterable[int] | None = None, dtype=np.float64) -> np.ndarray:
+def as_array(x, name: str) -> np.ndarray:
+    """``np.asarray(x)``, with a ``ValueError`` naming the argument when that fails (ragged nested
+    lists, objects NumPy cannot convert) or when ``x`` is None."""
+    if x is None:
+        raise ValueError(f"{name}: got None; pass a NumPy array")
+    try:
+        return np.asarray(x)
+    except Exception as exc:  # noqa: BLE001 - numpy raises many things for unconvertible input
+        first = str(exc).split(". ")[0].split("\n")[0]
+        raise ValueError(f"{name}: could not convert to an array ({first}); pass a NumPy array of one shape "
+                         "(nested lists must all have the same length)") from None
+
+
+def as_float_array(x, name: str, *, ndim: Iterable[int] | None = None, dtype=np.float64,
+                   allow_empty: bool = False) -> np.ndarray:
     """``x`` as a real float array, checking its number of dimensions.
 
-    Raises ``ValueError`` if ``x`` is not numeric (object, string, complex) or has the wrong
-    number of dimensions.
+    Raises ``ValueError`` if ``x`` is None, not numeric (object, string, complex), ragged, has the
+    wrong number of dimensions, or is empty (unless ``allow_empty``).
     """
-    try:
-        arr = np.asarray(x)
-    except Exception as exc:  # pragma: no cover - numpy raises many things
-        raise ValueError(f"{name}: could not convert to an array ({exc}); pass a NumPy array") from exc
+    arr = as_array(x, name)
     if np.iscomplexobj(arr):
         raise ValueError(f"{name}: complex values (dtype {arr.dtype}); pass real values "
                          "(np.real(x) or np.abs(x), whichever the data means)")
@@ -54,6 +69,8 @@ def as_float_array(x, name: str, *, ndim: Iterable[int] | None = None, dtype=np.
         if arr.ndim not in ndims:
             want = " or ".join(str(n) for n in ndims)
             raise ValueError(f"{name}: expected {want} dimensions, got shape {arr.shape}; reshape the input")
+    if arr.size == 0 and not allow_empty:
+        raise ValueError(f"{name}: empty array (shape {arr.shape}); pass at least one value")
     return arr.astype(dtype, copy=False)
 
 
@@ -73,7 +90,9 @@ def check_mask(mask, shape: tuple[int, ...], name: str = "mask") -> np.ndarray:
     """Return ``mask`` as a boolean array of ``shape`` (all True when ``mask`` is None)."""
     if mask is None:
         return np.ones(shape, dtype=bool)
-    m = np.asarray(mask)
+    m = as_array(mask, name)
+    if m.dtype == object or np.iscomplexobj(m) or not (np.issubdtype(m.dtype, np.number) or m.dtype == bool):
+        raise ValueError(f"{name}: must be boolean (or 0/1), got dtype {m.dtype}; pass an (H, W) boolean mask")
     if m.shape != tuple(shape):
         raise ValueError(f"{name}: shape {m.shape} does not match the image shape {tuple(shape)}; pass an (H, W) boolean mask")
     if m.dtype != bool:
@@ -98,6 +117,20 @@ def check_positive(value, name: str) -> float:
     return check_number(value, name, lo=0.0, lo_open=True)
 
 
+MAX_PIXEL_SIZE = 1e6
+
+
+def check_pixel_size(value, name: str = "pixel_size") -> float:
+    """A pixel size (world units per pixel): a finite number > 0 and <= :data:`MAX_PIXEL_SIZE`
+    (heights are pixel heights times it, which must stay finite)."""
+    return check_number(value, name, lo=0.0, lo_open=True, hi=MAX_PIXEL_SIZE)
+
+
+def check_tolerance(value, name: str = "tol") -> float:
+    """A relative tolerance: a finite number > 0 and <= 1 (a larger one stops at once)."""
+    return check_number(value, name, lo=0.0, lo_open=True, hi=1.0)
+
+
 def check_number(value, name: str, *, lo: float | None = None, hi: float | None = None,
                  lo_open: bool = False, hi_open: bool = False) -> float:
     """``value`` as a finite float inside ``[lo, hi]`` (``lo_open`` / ``hi_open``: strict bounds)."""
@@ -118,6 +151,20 @@ def check_number(value, name: str, *, lo: float | None = None, hi: float | None 
         rng = f" {' and '.join(parts)}" if parts else ""
         raise ValueError(f"{name}: must be a finite number{rng}, got {value!r}")
     return v
+
+
+def check_seed(seed, name: str = "seed"):
+    """``seed`` if NumPy accepts it as a seed (an integer >= 0, a sequence of them, a
+    SeedSequence or a Generator), else ``ValueError`` naming the argument."""
+    if isinstance(seed, (np.random.Generator, np.random.SeedSequence)):
+        return seed
+    if isinstance(seed, bool) or seed is None:
+        raise ValueError(f"{name}: must be an integer >= 0 (or a sequence of them), got {seed!r}")
+    try:
+        np.random.SeedSequence(seed)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name}: must be an integer >= 0 (or a sequence of them), got {seed!r}") from None
+    return seed
 
 
 def check_int(value, name: str, lo: int = 1, hi: int | None = None) -> int:

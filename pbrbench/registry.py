@@ -16,19 +16,36 @@ read the methods tables: adding a method to a table adds it to the benchmark wit
 Per-quality budgets (e.g. fewer iterations at draft) live in the quality profile
 (:attr:`pbrbench.render.quality.Quality.algorithm_options`) and are merged by
 :meth:`Algorithm.options_for`.  The callable's signature is the task's (``docs/adding.md``).
+
+Plugins (``docs/plugins.md``) are added by :func:`plugin_registry`: the built-ins, then every
+entry point of the group :data:`ENTRY_POINT_GROUP` and every ``--algorithm`` spec
+``TASK=MODULE:FUNCTION[:NAME]`` (:func:`parse_algorithm_spec`).  An entry point names either a
+``register(registry)`` function, which receives a :class:`PluginRegistry` and adds entries, or an
+algorithm callable (entry-point name ``TASK:NAME``, or a callable marked with :func:`algorithm`).
+Plugin entries are kind ``plugin``, carry their version (declared, else ``"1"``) and the hash of
+their module's source, frozen when they are loaded, and run in a child process with a time limit
+(:mod:`pbrbench.isolation`), so a plugin that hangs or crashes is scored as failed and the run
+goes on.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
+import importlib
 import inspect
+import os
 import sys
 from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from types import MappingProxyType
 
+from pbrbench.errors import UserError
+
 KINDS = ("method", "baseline", "floor", "plugin")
+ENTRY_POINT_GROUP = "pbrbench.algorithms"
+DEFAULT_TIME_LIMIT = 600.0   # seconds per plugin call (one call per job)
 
 
 def _unwrap(fn):
@@ -90,6 +107,8 @@ class Algorithm:
     origin: str = "pbrbench"              # where it came from (a module path, an entry point)
     interface: str = ""                   # which of the task's calling conventions ("": the main one)
     figures: bool = True                  # whether the report shows this algorithm's images
+    fingerprint: str | None = None        # source hash frozen at load time (plugins); None: computed
+    time_limit: float | None = None       # seconds; set: each call runs in a child process (isolation)
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -98,13 +117,15 @@ class Algorithm:
             raise ValueError(f"Algorithm name {self.name!r}: give a non-empty name without '|'")
         if not callable(self.fn):
             raise ValueError(f"Algorithm {self.name!r}: fn is not callable")
+        if self.time_limit is not None and not float(self.time_limit) > 0:
+            raise ValueError(f"Algorithm {self.name!r}: time_limit={self.time_limit!r}; give seconds > 0 or None")
         object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
 
     @property
     def full_version(self) -> str:
         """``<declared>+<source hash>``: what scores record as ``algorithm_version``."""
         v = self.version if self.version is not None else declared_version(self.fn)
-        return f"{v}+{source_hash(self.fn)}"
+        return f"{v}+{self.fingerprint or source_hash(self.fn)}"
 
     def options_for(self, quality=None) -> dict:
         """Fixed options plus the quality profile's budget for this (task, algorithm)."""
@@ -117,15 +138,49 @@ class Algorithm:
         return self.conditions is None or condition in self.conditions
 
     def __call__(self, *args, quality=None, **kwargs):
-        return self.fn(*args, **{**self.options_for(quality), **kwargs})
+        kw = {**self.options_for(quality), **kwargs}
+        if self.time_limit is not None:
+            from pbrbench.isolation import call_isolated
+
+            return call_isolated(self.fn, args, kw, time_limit=self.time_limit, name=self.name)
+        return self.fn(*args, **kw)
 
     def __reduce__(self):  # MappingProxyType does not pickle (Dask ships entries to workers)
-        return (_rebuild, (self.name, self.task, self.fn, self.kind, self.version, dict(self.options),
-                           self.conditions, self.description, self.origin, self.interface, self.figures))
+        return (_rebuild, (self.name, self.task, _portable(self.fn), self.kind, self.version, dict(self.options),
+                           self.conditions, self.description, self.origin, self.interface, self.figures,
+                           self.fingerprint, self.time_limit))
 
 
-def _rebuild(*args) -> Algorithm:
-    return Algorithm(*args)
+class _ByValue:
+    """A callable pickled by value (cloudpickle): a plugin file loaded by path, a closure or a
+    lambda, which another process (a Dask worker) could not import by name."""
+
+    def __init__(self, data: bytes):
+        self.data = data
+
+
+def _portable(fn):
+    f = _unwrap(fn)
+    mod = getattr(f, "__module__", None)
+    qual = getattr(f, "__qualname__", "") or ""
+    if not (mod in _PATH_MODULES or mod == "__main__" or "<locals>" in qual or "<lambda>" in qual):
+        return fn
+    try:
+        import cloudpickle
+    except ImportError:  # pragma: no cover - cloudpickle ships with pbrbench's dependencies
+        return fn
+    for m in {mod, getattr(getattr(fn, "func", None), "__module__", None)} & set(_PATH_MODULES):
+        if m in sys.modules:
+            cloudpickle.register_pickle_by_value(sys.modules[m])
+    return _ByValue(cloudpickle.dumps(fn))
+
+
+def _rebuild(name, task, fn, *rest) -> Algorithm:
+    if isinstance(fn, _ByValue):
+        import pickle
+
+        fn = pickle.loads(fn.data)
+    return Algorithm(name, task, fn, *rest)
 
 
 class Registry:
@@ -156,6 +211,9 @@ class Registry:
             names = ", ".join(a.name for a in self.for_task(task)) or "none"
             raise KeyError(f"task {task!r} has no algorithm {name!r}; it has {names}") from None
 
+    def remove(self, task: str, name: str) -> None:
+        self._entries.pop((task, name), None)
+
     def tasks(self) -> list[str]:
         return list(dict.fromkeys(t for t, _ in self._entries))
 
@@ -175,4 +233,252 @@ def builtin_registry(tasks: Mapping) -> Registry:
     for task in tasks.values():
         for alg in task.builtin_algorithms():
             reg.add(alg)
+    return reg
+
+
+# ----------------------------------------------------------------------------------- plugins
+_PATH_MODULES: dict[str, str] = {}   # module name -> file, for plugin files loaded by path
+
+
+def path_module_file(module_name: str) -> str | None:
+    """The file a plugin module was loaded from by path (None for an importable module)."""
+    return _PATH_MODULES.get(module_name)
+
+
+def algorithm(task: str, name: str | None = None, *, version: str | None = None, **options):
+    """Mark a function as a pbrbench algorithm, so an entry point may point straight at it::
+
+        @algorithm("photometric_stereo", "mine", version="2")
+        def solve(images, lights, *, mask=None): ...
+
+    (``[project.entry-points."pbrbench.algorithms"] mine = "mypkg.ps:solve"``).  ``options``
+    are fixed keyword options passed at every call."""
+    def mark(fn):
+        fn.pbrbench_task = task
+        fn.pbrbench_name = name or fn.__name__
+        fn.pbrbench_version = version
+        fn.pbrbench_options = dict(options)
+        return fn
+    return mark
+
+
+def _task_name(task: str) -> str:
+    return str(task).strip().replace("-", "_")
+
+
+class PluginRegistry:
+    """What a plugin's ``register(registry)`` function receives: it adds algorithms with
+    :meth:`add` (or the :meth:`algorithm` decorator); ``tasks`` lists the tasks of this run.
+
+    Entries for a task that is not part of the run are ignored (so one package can serve every
+    task).  Every entry is kind ``plugin`` with the plugin's origin, its source hash frozen now,
+    and the run's time limit."""
+
+    def __init__(self, registry: Registry, tasks: Iterable[str], *, origin: str, time_limit: float | None,
+                 strict: bool = True):
+        self._registry = registry
+        self.tasks = tuple(tasks)
+        self._origin = origin
+        self._time_limit = time_limit
+        self._strict = strict
+        self.added: list[Algorithm] = []
+        self.skipped: list[str] = []
+
+    def add(self, task, name: str | None = None, fn: Callable | None = None, *, version: str | None = None,
+            options: Mapping | None = None, conditions=None, description: str = "", interface: str = "",
+            figures: bool = True) -> Algorithm | None:
+        """Add ``fn`` as algorithm ``name`` of ``task`` (or pass a ready :class:`Algorithm` as the
+        only argument).  Returns the entry, or None when the task is not part of this run."""
+        if isinstance(task, Algorithm):
+            alg = task
+            if alg.kind != "plugin" or alg.origin == "pbrbench":
+                alg = replace(alg, kind="plugin", origin=self._origin)
+        else:
+            if fn is None or not callable(fn):
+                raise ValueError(f"{self._origin}: add({task!r}, {name!r}, fn): fn must be a callable")
+            task = _task_name(task)
+            alg = Algorithm(name or fn.__name__, task, fn, kind="plugin", version=version, options=dict(options or {}),
+                            conditions=tuple(conditions) if conditions is not None else None,
+                            description=description, origin=self._origin, interface=interface, figures=figures)
+        if alg.task not in self.tasks:
+            self.skipped.append(f"{alg.name} (task {alg.task!r} is not in this run)")
+            return None
+        if alg.version is None:
+            alg = replace(alg, version=declared_version(alg.fn))
+        alg = replace(alg, fingerprint=alg.fingerprint or source_hash(alg.fn),
+                      time_limit=alg.time_limit if alg.time_limit is not None else self._time_limit)
+        if (alg.task, alg.name) in self._registry:
+            old = self._registry.get(alg.task, alg.name)
+            raise ValueError(f"{self._origin}: algorithm {alg.name!r} of task {alg.task!r} is already registered "
+                             f"({old.origin}); give it another name")
+        self._registry.add(alg)
+        self.added.append(alg)
+        return alg
+
+    def algorithm(self, task: str, name: str | None = None, **kw):
+        """Decorator form of :meth:`add`."""
+        def deco(fn):
+            self.add(task, name, fn, **kw)
+            return fn
+        return deco
+
+
+def _load_path_module(path: Path):
+    path = path.expanduser().resolve()
+    if not path.is_file():
+        raise UserError(f"{path}: no such plugin file")
+    digest = hashlib.sha256(str(path).encode()).hexdigest()[:10]
+    stem = "".join(c if c.isalnum() else "_" for c in path.stem)
+    name = f"pbrbench_plugin_{stem}_{digest}"
+    if name in sys.modules:
+        return sys.modules[name]
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[name] = mod
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as e:
+        del sys.modules[name]
+        raise UserError(f"{path}: the plugin file failed to load ({type(e).__name__}: {' '.join(str(e).split())})") from None
+    _PATH_MODULES[name] = str(path)
+    return mod
+
+
+def is_path(module: str) -> bool:
+    return module.endswith(".py") or "/" in module or os.sep in module
+
+
+def load_module(module: str):
+    """A plugin module: a dotted module importable from ``sys.path``, or a path to a ``.py``
+    file (loaded alone, under a name derived from its path).  ``UserError`` when it cannot be
+    loaded."""
+    if is_path(module):
+        return _load_path_module(Path(module))
+    try:
+        return importlib.import_module(module)
+    except ImportError as e:
+        raise UserError(f"plugin module {module!r} cannot be imported ({e}); put its folder on PYTHONPATH "
+                        "or give a path to a .py file") from None
+    except Exception as e:
+        raise UserError(f"plugin module {module!r} failed to load ({type(e).__name__}: {' '.join(str(e).split())})") from None
+
+
+def parse_algorithm_spec(spec: str) -> tuple[str, str, str, str | None]:
+    """``TASK=MODULE:FUNCTION[:NAME]`` -> (task, module, function, name or None).  MODULE is a
+    dotted module or a path to a ``.py`` file; FUNCTION may be dotted (``Class.method``)."""
+    task, sep, rest = str(spec).partition("=")
+    hint = ("write TASK=MODULE:FUNCTION[:NAME], e.g. photometric_stereo=./mine.py:solve "
+            "or photometric_stereo=mypkg.ps:solve:mine")
+    if not sep or not task.strip() or not rest:
+        raise UserError(f"--algorithm {spec!r}: {hint}")
+    i = rest.find(".py:")
+    if i >= 0:
+        module, tail = rest[:i + 3], rest[i + 4:]
+    else:
+        module, _, tail = rest.partition(":")
+    func, _, name = tail.partition(":")
+    if not module or not func or ":" in name:
+        raise UserError(f"--algorithm {spec!r}: {hint}")
+    return _task_name(task), module, func, (name or None)
+
+
+def normalize_algorithm_spec(spec: str) -> str:
+    """The spec with a plugin file's path made absolute (stored with a run, so ``--resume``
+    reloads it from any directory)."""
+    task, module, func, name = parse_algorithm_spec(spec)
+    if is_path(module):
+        module = str(Path(module).expanduser().resolve())
+    return f"{task}={module}:{func}" + (f":{name}" if name else "")
+
+
+def _attr(mod, dotted: str, where: str):
+    obj = mod
+    for part in dotted.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            names = ", ".join(n for n in dir(mod) if not n.startswith("_") and callable(getattr(mod, n)))
+            raise UserError(f"{where}: {getattr(mod, '__name__', mod)} has no {dotted!r} (it has {names or 'no callables'})") from None
+    if not callable(obj):
+        raise UserError(f"{where}: {dotted!r} is not callable")
+    return obj
+
+
+def add_algorithm_spec(registry: Registry, spec: str, tasks: Iterable[str], *, time_limit: float | None) -> Algorithm:
+    """Load one ``--algorithm`` spec into ``registry`` (``UserError`` when it cannot be used)."""
+    task, module, func, name = parse_algorithm_spec(spec)
+    tasks = tuple(tasks)
+    if task not in tasks:
+        raise UserError(f"--algorithm {spec!r}: task {task!r} is not part of this run (tasks: {', '.join(tasks)}); "
+                        "add it to --tasks")
+    mod = load_module(module)
+    fn = _attr(mod, func, f"--algorithm {spec!r}")
+    name = name or getattr(fn, "pbrbench_name", None) or func.rsplit(".", 1)[-1]
+    reg = PluginRegistry(registry, tasks, origin=f"--algorithm {normalize_algorithm_spec(spec)}", time_limit=time_limit)
+    try:
+        return reg.add(task, name, fn, version=getattr(fn, "pbrbench_version", None),
+                       options=getattr(fn, "pbrbench_options", None))
+    except ValueError as e:
+        raise UserError(f"--algorithm {spec!r}: {e}; add :NAME to the spec") from None
+
+
+def _one_line(e: BaseException) -> str:
+    return f"{type(e).__name__}: {' '.join(str(e).split())}"[:300]
+
+
+def add_entry_points(registry: Registry, tasks: Iterable[str], *, time_limit: float | None,
+                     group: str = ENTRY_POINT_GROUP) -> list[str]:
+    """Load every installed entry point of ``group`` into ``registry``.  Returns one line per
+    entry point that could not be used (it is skipped; the run goes on)."""
+    from importlib.metadata import entry_points
+
+    tasks = tuple(tasks)
+    problems = []
+    for ep in entry_points(group=group):
+        dist = getattr(ep, "dist", None)
+        origin = f"entry point {ep.name} = {ep.value}" + (f" ({dist.name} {dist.version})" if dist is not None else "")
+        try:
+            obj = ep.load()
+        except Exception as e:  # noqa: BLE001 - a broken plugin package must not stop the run
+            problems.append(f"{origin}: failed to load ({_one_line(e)})")
+            continue
+        reg = PluginRegistry(registry, tasks, origin=origin, time_limit=time_limit)
+        try:
+            if ":" in ep.name:                       # "TASK:NAME" = "module:callable"
+                task, _, name = ep.name.partition(":")
+                reg.add(task, name, obj, version=getattr(obj, "pbrbench_version", None),
+                        options=getattr(obj, "pbrbench_options", None))
+            elif hasattr(obj, "pbrbench_task"):      # a callable marked with @algorithm
+                reg.add(obj.pbrbench_task, obj.pbrbench_name, obj, version=obj.pbrbench_version,
+                        options=obj.pbrbench_options)
+            elif callable(obj):                      # register(registry)
+                obj(reg)
+            else:
+                problems.append(f"{origin}: {type(obj).__name__} is not callable; point it at register(registry) "
+                                "or at an algorithm")
+                continue
+        except Exception as e:  # noqa: BLE001
+            problems.append(f"{origin}: {_one_line(e)}")
+            for alg in reg.added:   # all or nothing per entry point
+                registry.remove(alg.task, alg.name)
+    return problems
+
+
+def plugin_registry(tasks: Mapping, specs: Iterable[str] = (), *, entry_points: bool = True,
+                    time_limit: float | None = DEFAULT_TIME_LIMIT, log=None) -> Registry:
+    """The built-in algorithms of ``tasks`` plus the installed plugins (entry points of
+    :data:`ENTRY_POINT_GROUP`, unless ``entry_points`` is false) plus the ``--algorithm``
+    ``specs``.  ``time_limit``: seconds per plugin call (None: plugins run in-process, without
+    a limit).  A broken entry point is skipped with a message to ``log``; a bad spec raises
+    ``UserError``."""
+    reg = builtin_registry(tasks)
+    names = list(tasks)
+    if entry_points:
+        for msg in add_entry_points(reg, names, time_limit=time_limit):
+            if log is not None:
+                log(f"plugin skipped: {msg}")
+    for spec in specs:
+        add_algorithm_spec(reg, spec, names, time_limit=time_limit)
     return reg

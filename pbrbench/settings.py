@@ -17,6 +17,8 @@ setting                     environment          default
 ``worker_threads``          PBRBENCH_WORKER_THREADS  Dr.Jit / BLAS threads per Dask worker (cores / workers)
 ``llvm_search`` (dirs)      PBRBENCH_LLVM_SEARCH the system library directories
 ``no_cuda``                 PBRBENCH_NO_CUDA     false (use CUDA when a device works)
+``data_dirs`` (scene data)  PBRBENCH_DATA_DIRS   none: a scene's data files must lie in its own directory
+``allow_large`` (limits)    PBRBENCH_ALLOW_LARGE false: refuse scene files whose renders exceed the limits
 ==========================  ===================  ==========================================================
 
 Only the standard library is imported here.
@@ -49,7 +51,7 @@ ENV = {
     "cache": "PBRBENCH_CACHE", "store": "PBRBENCH_STORE", "variant": "PBRBENCH_VARIANT",
     "scenes": "PBRBENCH_SCENES", "baselines": "PBRBENCH_BASELINES", "progress": "PBRBENCH_PROGRESS",
     "worker_threads": "PBRBENCH_WORKER_THREADS", "llvm_search": "PBRBENCH_LLVM_SEARCH",
-    "no_cuda": "PBRBENCH_NO_CUDA",
+    "no_cuda": "PBRBENCH_NO_CUDA", "data_dirs": "PBRBENCH_DATA_DIRS", "allow_large": "PBRBENCH_ALLOW_LARGE",
 }
 
 
@@ -70,6 +72,8 @@ class Settings:
     worker_threads: int | None = None
     llvm_search: tuple[str, ...] | None = None
     no_cuda: bool = False
+    data_dirs: tuple[str, ...] | None = None
+    allow_large: bool = False
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -91,12 +95,15 @@ class Settings:
 
             raise UserError(f"PBRBENCH_WORKER_THREADS={wt!r}: give a whole number of threads") from None
         ls = get("llvm_search")
+        dd = get("data_dirs")
         s = cls(cache=Path(cache), store=Path(get("store")) if get("store") else None, variant=get("variant"),
                 scenes=Path(get("scenes")) if get("scenes") else LIBRARY_DIR,
                 baselines=Path(get("baselines")) if get("baselines") else _source_baselines(),
                 progress=_flag(get("progress")), worker_threads=wt,
                 llvm_search=tuple(ls.split(os.pathsep)) if ls else None,
-                no_cuda=bool(_flag(get("no_cuda"))))
+                no_cuda=bool(_flag(get("no_cuda"))),
+                data_dirs=tuple(x for x in dd.split(os.pathsep) if x) if dd else None,
+                allow_large=bool(_flag(get("allow_large"))))
         return s.with_(**overrides)
 
     @classmethod
@@ -145,6 +152,10 @@ class Settings:
             out[ENV["llvm_search"]] = os.pathsep.join(self.llvm_search)
         if self.no_cuda:
             out[ENV["no_cuda"]] = "1"
+        if self.data_dirs:
+            out[ENV["data_dirs"]] = os.pathsep.join(self.data_dirs)
+        if self.allow_large:
+            out[ENV["allow_large"]] = "1"
         if "DRJIT_LIBLLVM_PATH" in os.environ:
             out["DRJIT_LIBLLVM_PATH"] = os.environ["DRJIT_LIBLLVM_PATH"]
         return out

@@ -1,13 +1,42 @@
 #!/usr/bin/env bash
 # One-time (idempotent) set-up on a fresh machine: virtual environment, the package, and the
 # system libraries the renderer and the browser test need.  Called by `make` only when
-# pyproject.toml or this script changed (stamp file), so a second `make test` installs nothing.
+# pyproject.toml, requirements.lock or this script changed (stamp file), so a second `make test`
+# installs nothing.  `setup.sh --uv-only` only makes the virtual environment and its uv (for
+# `make lock`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 VENV=${VENV:-.venv}
 PYTHON=${PYTHON:-python3}
+LOCK=requirements.lock
+UV="$VENV/bin/uv"
 
 say() { printf 'setup: %s\n' "$*" >&2; }
+
+# --- the virtual environment and uv, at the version pinned (with its hashes) in the lock
+bootstrap_uv() {
+  [ -f "$LOCK" ] || { say "ERROR: $LOCK is missing (\`make lock\` writes it)"; exit 1; }
+  if [ ! -x "$VENV/bin/python" ]; then
+    say "creating $VENV"
+    "$PYTHON" -m venv "$VENV"
+  fi
+  local want have req
+  want=$(sed -n 's/^uv==\([^ ]*\).*/\1/p' "$LOCK")
+  have=$("$UV" --version 2>/dev/null | cut -d' ' -f2 || true)
+  [ "$have" = "$want" ] && return 0
+  say "installing uv $want (pinned in $LOCK) into $VENV"
+  req=$(mktemp)
+  # uv's entry of the lock: its pin and its hash lines
+  awk '/^uv==/ {p = 1} p {print} p && !/\\$/ {exit}' "$LOCK" >"$req"
+  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps --require-hashes -r "$req" \
+    || { rm -f "$req"; exit 1; }
+  rm -f "$req"
+}
+
+if [ "${1:-}" = --uv-only ]; then
+  bootstrap_uv
+  exit 0
+fi
 
 # --- system packages: libLLVM >= 16 for Mitsuba's LLVM variant, chromium for the report test
 have_llvm16() {
@@ -43,14 +72,16 @@ if [ "${PBRBENCH_SKIP_CHROMIUM:-0}" != 1 ] && ! command -v chromium >/dev/null; 
   else say "NOTICE: chromium not installed: the browser half of the report test will be skipped"; fi
 fi
 
-# --- Python environment
-if [ ! -x "$VENV/bin/python" ]; then
-  say "creating $VENV"
-  "$PYTHON" -m venv "$VENV"
-fi
-"$VENV/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip >/dev/null
-say "installing pbrbench and its dependencies into $VENV"
-"$VENV/bin/python" -m pip install -q --disable-pip-version-check -e ".[dev,distributed]"
+# --- Python environment: exactly the versions of requirements.lock (hashes checked), installed
+# by uv; then pbrbench itself, editable, without dependencies.  Refresh the lock with `make lock`
+# (docs/install.md).
+bootstrap_uv
+uvp() { "$UV" pip "$@" --quiet --python "$VENV/bin/python"; }
+say "installing the locked dependencies and pbrbench into $VENV"
+uvp install --require-hashes -r "$LOCK"
+uvp install --no-deps --no-build-isolation -e .
+check=$("$UV" pip check --python "$VENV/bin/python" 2>&1) \
+  || { printf '%s\n' "$check" >&2; say "ERROR: $LOCK does not satisfy pyproject.toml; refresh it with \`make lock\`"; exit 1; }
 "$VENV/bin/python" -c "import pbrbench, numpy, scipy, mitsuba, drjit, OpenEXR" \
   || { say "ERROR: the installed environment does not import"; exit 1; }
 say "done"

@@ -59,6 +59,8 @@ def test_infer_imports_only_numpy_scipy_and_checks_at_import_time():
     ("tasks", r"^pbrbench\.(bench|report)"),
     ("infer", r"^pbrbench\.(?!infer|checks)"),
     ("checks", r"^pbrbench\.(?!errors)"),
+    ("datasets", r"^pbrbench\.(infer|render|scene|tasks|bench|report|registry)"),
+    ("io", r"^pbrbench\.(?!checks)"),
 ])
 def test_no_import_runs_against_the_data_flow(layer, forbidden):
     bad = [f"{f.relative_to(PKG)}: {mod}" for f in files(layer) for mod, _, _ in imports(f) if re.match(forbidden, mod)]

@@ -8,7 +8,8 @@ worker, and keeps the worker's ground-truth sources, so consecutive jobs on one 
 source's memory cache.  Ground truths go into the render cache at the same path on every worker
 (shared when the workers share a file system; otherwise each worker renders what it lacks);
 scores and figures (PNG bytes) come back to the client, which alone writes the store and the
-report.
+report.  A worker lost mid-run costs only time: Dask runs its tasks again elsewhere
+(:meth:`DaskExecutor.imap`), and since a job is a pure function its scores are the same.
 """
 
 from __future__ import annotations
@@ -160,16 +161,42 @@ class DaskExecutor:
             self.client.register_worker_plugin(plugin, name=plugin.name)
 
     def imap(self, fn, arglists):
+        """``fn(*args)`` for each of ``arglists`` on the cluster, yielded as each finishes (in no
+        particular order), each exactly once.
+
+        A worker that dies (killed, out of memory, a crash) loses nothing: the scheduler runs the
+        tasks it was running, and the results it held that this process had not fetched yet, again
+        on the other workers (or on the worker its nanny restarts); a result being fetched when its
+        worker dies is recomputed and fetched again.  Only a task that was running each time
+        ``distributed.scheduler.allowed-failures`` + 1 workers died (Dask's default: 3 + 1) is given
+        up (``KilledWorker``): the other tasks still run and their results are yielded, then
+        :class:`pbrbench.errors.UserError` names the tasks that were given up.
+        """
         from distributed import as_completed
+        from distributed.scheduler import KilledWorker
 
         futures = [self.client.submit(fn, *args, pure=False) for args in arglists]
+        lost: list[KilledWorker] = []
         try:
             for fut in as_completed(futures):
-                yield fut.result()
+                try:
+                    result = fut.result()
+                except KilledWorker as exc:
+                    lost.append(exc)
+                    continue
+                yield result
         finally:
             for f in futures:
                 if not f.done():
                     f.cancel()
+        if lost:
+            n = lost[0].allowed_failures + 1
+            raise UserError(f"Dask: {len(lost)} of {len(futures)} tasks given up, each was running on {n} "
+                            f"worker{'s' if n != 1 else ''} that died (distributed.scheduler.allowed-failures = "
+                            f"{n - 1}): "
+                            f"{', '.join(str(e.task) for e in lost)[:300]}; every other task finished. A worker "
+                            "dies when it runs out of memory or a library crashes (see the worker logs); "
+                            "`pbrbench run --resume RUN` reruns only a run's missing jobs")
 
     def probe(self) -> list[dict]:
         return list(self.client.run(worker_probe).values())

@@ -56,7 +56,7 @@ def task_info(tasks: dict, registry) -> dict:
         algs = registry.for_task(n)
         out[n] = {"description": t.description, "conditions": list(t.conditions),
                   "headline_metric": t.headline_metric, "reference_condition": t.reference_condition,
-                  "notes": t.notes,
+                  "notes": t.notes, "cost_notes": dict(getattr(t, "cost_notes", {}) or {}),
                   "algorithms": [a.name for a in algs],
                   "algorithm_kinds": {a.name: a.kind for a in algs},
                   "algorithm_versions": {a.name: a.full_version for a in algs},

@@ -27,12 +27,14 @@ import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+from pbrbench.bench import lifecycle
 from pbrbench.bench.executors import blas_threads, job_threads, make_executor, worker_source
 from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
 from pbrbench.bench.store import Store
 from pbrbench.errors import UserError
+from pbrbench.registry import DEFAULT_TIME_LIMIT
 
 
 @dataclass
@@ -52,10 +54,13 @@ class RunConfig:
     algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
     job_cache: bool = True         # reuse finished jobs whose inputs and code are unchanged
     uncertainty: bool = True       # score the half-sample replicates (the standard errors)
+    algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin call; None: in-process
+    entry_points: bool = True                     # load the installed plugins (entry points)
 
     def recorded(self) -> dict:
         return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,
-                "workers": self.workers, "algorithms": list(self.algorithms)}
+                "workers": self.workers, "algorithms": list(self.algorithms),
+                "algorithm_time_limit": self.algorithm_time_limit, "entry_points": self.entry_points}
 
 
 @dataclass
@@ -149,7 +154,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
     from pbrbench.bench import regress
-    from pbrbench.registry import builtin_registry
+    from pbrbench.registry import normalize_algorithm_spec, plugin_registry
     from pbrbench.render.quality import get_quality
     from pbrbench.report.figures import slug
     from pbrbench.settings import Settings
@@ -157,14 +162,17 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     log = log or _log
     settings = settings or Settings.from_env()
     t_start = time.perf_counter()
+    lifecycle.preflight(settings)  # an unwritable --out: one line, and no junk run in the store
     store = Store(settings.store_path())
     prior_done: set[str] = set()
     if cfg.resume:
         run_id = store.resolve_run(cfg.resume)
-        run = store.get_run(run_id)
+        run = lifecycle.check_resumable(store, run_id)
         rc = run["config"]
         cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
         cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
+        cfg.algorithm_time_limit = rc.get("algorithm_time_limit", cfg.algorithm_time_limit)
+        cfg.entry_points = rc.get("entry_points", cfg.entry_points)
         settings = settings.with_(variant=settings.variant or rc.get("variant"))
         prior_done = store.done_jobs(run_id)
     quality = get_quality(cfg.quality)
@@ -172,27 +180,33 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         tasks = load_tasks(cfg.tasks)
     if not tasks:
         raise UserError("no task to run; pass --tasks NAME (see `pbrbench run --help`)")
-    if registry is None:
-        registry = builtin_registry(tasks)
+    if registry is None:   # the built-ins, the installed plugins and the --algorithm specs
+        cfg.algorithms = [normalize_algorithm_spec(a) for a in cfg.algorithms]
+        registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
+                                   time_limit=cfg.algorithm_time_limit, log=log)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
                                          scenes=settings.scenes)
     variant = source.resolve_variant()
     info = task_info(tasks, registry)
-    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info)
+    from pbrbench.lock import locked_versions
+
+    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info,
+                  quality_profile=quality.render_key(), environment={"lock": locked_versions()})
+    jobs = plan(tasks, quality)          # planned (and the scene files loaded) before the run exists,
+    todo = [j for j in jobs if j.key not in prior_done]  # so a bad scene file leaves no junk run
+    names = needed_scenes(jobs)
+    specs = source.specs(names)
     if cfg.resume:
         store.set_status(run_id, "running")
     else:
         run_id = store.create_run(quality=quality.name, config=config, variant=variant)
+    heartbeat = lifecycle.start(store, run_id)   # process and heartbeat: a dead run reads interrupted
     run_dir = Path(settings.out) / run_id
     run_dir.mkdir(parents=True, exist_ok=True)
     bars = settings.progress_bars(sys.stderr)
 
     from pbrbench.progress import Progress
 
-    jobs = plan(tasks, quality)
-    todo = [j for j in jobs if j.key not in prior_done]
-    names = needed_scenes(jobs)
-    specs = source.specs(names)
     outcome = RunOutcome(run_id, None, [], len(jobs), len(jobs) - len(todo), {}, task_info=info)
     ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
                                    settings=settings)
@@ -276,7 +290,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         log(f"run {run_id} interrupted; resume it with `pbrbench run --resume {run_id}`")
         raise
     finally:
-        store.set_status(run_id, status, variant=variant)
+        lifecycle.finish(store, run_id, status, variant=variant, heartbeat=heartbeat, log=log)
         if executor is None:
             ex.close()
     outcome.wall_seconds = time.perf_counter() - t_start

@@ -20,6 +20,17 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
 Concurrency: WAL journal and a busy timeout, and every write is one short ``BEGIN IMMEDIATE``
 transaction, so two runs writing at once wait for each other instead of failing or corrupting
 the file (see ``tests/test_store.py``).
+
+Faults: a database that cannot be written (a read-only file, directory or file system; an
+archived copy) is opened read-only by the readers (``Store(path, readonly=None)``: history,
+report, compare) without changing its journal mode or migrating it; a write that fails (full
+disk, read-only) raises a one-line :class:`~pbrbench.errors.DiskError` naming the file, and
+SQLite's transaction keeps the file as it was.  A file that is not a SQLite database is refused
+with a one-line error.
+
+Liveness: a run records its process (host, pid, the process's start time) and a heartbeat
+(:mod:`pbrbench.bench.lifecycle`); a ``running`` run whose process is gone reads as
+``interrupted`` (:meth:`Store.runs`, :meth:`Store.get_run`), and can be resumed.
 """
 
 from __future__ import annotations
@@ -36,6 +47,8 @@ from collections.abc import Iterable
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+
+from pbrbench.errors import DiskError, UserError, disk_error
 
 BUSY_TIMEOUT_MS = 60_000
 
@@ -106,6 +119,12 @@ ALTER TABLE scores ADD COLUMN rep_b REAL;
 ALTER TABLE scores ADD COLUMN rep_noise REAL;
 ALTER TABLE ground_truths ADD COLUMN tags TEXT
 """),
+    (4, "the process of a run (host, pid, start) and its heartbeat, to tell a dead run from a live one", """
+ALTER TABLE runs ADD COLUMN host TEXT;
+ALTER TABLE runs ADD COLUMN pid INTEGER;
+ALTER TABLE runs ADD COLUMN pid_start TEXT;
+ALTER TABLE runs ADD COLUMN heartbeat TEXT
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -159,6 +178,16 @@ def environment() -> dict:
     }
 
 
+def _with_liveness(run: dict) -> dict:
+    """``status`` as it is (a ``running`` run whose process is gone reads ``interrupted``);
+    ``stored_status`` keeps what the database says."""
+    from pbrbench.bench.lifecycle import effective_status
+
+    run["stored_status"] = run.get("status")
+    run["status"] = effective_status(run)
+    return run
+
+
 def _json_default(x):
     f = float(x)
     return f if math.isfinite(f) else None
@@ -172,12 +201,49 @@ def _num(x):
     return None if math.isnan(x) else x
 
 
-class Store:
-    """A connection to the results database (created and migrated on open)."""
+_READONLY_HINTS = ("readonly", "read-only", "unable to open", "attempt to write", "disk i/o error", "cannot open")
 
-    def __init__(self, path: str | os.PathLike):
+
+def _is_readonly_error(exc: sqlite3.Error) -> bool:
+    return any(h in str(exc).lower() for h in _READONLY_HINTS)
+
+
+class Store:
+    """A connection to the results database (created and migrated on open).
+
+    ``readonly``: False (the default) opens it for writing, creating and migrating it; True opens
+    an existing database read-only; None opens it for writing when possible, else read-only (the
+    readers: history, report, compare).  :attr:`readonly` says which it got.
+    """
+
+    def __init__(self, path: str | os.PathLike, *, readonly: bool | None = False):
         self.path = Path(path)
-        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.readonly = False
+        self.conn = None
+        if self.path.is_dir():
+            raise UserError(f"--store {self.path}: is a directory; give the path of a results database file")
+        if readonly:
+            self._open_readonly()
+            return
+        try:
+            self._open_writable()
+        except (UserError, sqlite3.Error, OSError) as exc:
+            if readonly is None and self.path.is_file() and (
+                    isinstance(exc, OSError) or isinstance(exc, DiskError) or
+                    (isinstance(exc, sqlite3.Error) and _is_readonly_error(exc))):
+                self._close_quietly()
+                self._open_readonly()
+                return
+            self._close_quietly()
+            if isinstance(exc, UserError):
+                raise
+            raise self._error(exc, "open") from None
+
+    def _open_writable(self):
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise disk_error(exc, f"results database {self.path}", option="--store or PBRBENCH_STORE") from None
         self.conn = sqlite3.connect(str(self.path), timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
         self.conn.row_factory = sqlite3.Row
         self.conn.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
@@ -186,9 +252,68 @@ class Store:
         self.conn.execute("PRAGMA synchronous = NORMAL")
         self.migrate()
 
+    def _open_readonly(self):
+        """Read an existing database without writing a byte (no journal mode, no migration);
+        ``immutable`` when even SQLite's shared-memory file cannot be created beside it."""
+        if not self.path.is_file():
+            raise UserError(f"--store {self.path}: no results database there; run `pbrbench run` first or pass --store")
+        from urllib.parse import quote
+
+        uri = "file:" + quote(str(self.path.resolve()))
+        last = None
+        for extra in ("?mode=ro", "?mode=ro&immutable=1"):
+            try:
+                conn = sqlite3.connect(uri + extra, uri=True, timeout=BUSY_TIMEOUT_MS / 1000, isolation_level=None)
+                conn.row_factory = sqlite3.Row
+                conn.execute(f"PRAGMA busy_timeout = {BUSY_TIMEOUT_MS}")
+                conn.execute("SELECT count(*) FROM sqlite_master").fetchone()
+            except sqlite3.Error as exc:
+                last = exc
+                continue
+            self.conn, self.readonly = conn, True
+            break
+        else:
+            raise self._error(last, "open")
+        try:
+            tables = {r[0] for r in self.conn.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            if "schema_migrations" not in tables:
+                raise UserError(f"--store {self.path}: not a pbrbench results database (no schema_migrations table); "
+                                "pass another --store")
+            v = self.schema_version()
+        except sqlite3.Error as exc:
+            raise self._error(exc, "read") from None
+        if v > SCHEMA_VERSION:
+            raise UserError(f"{self.path}: results store has schema version {v}, newer than this pbrbench "
+                            f"({SCHEMA_VERSION}); upgrade pbrbench or use another --store")
+
+    def _close_quietly(self):
+        if self.conn is not None:
+            try:
+                self.conn.close()
+            except sqlite3.Error:
+                pass
+            self.conn = None
+
+    def _error(self, exc: BaseException, doing: str) -> UserError:
+        """A one-line error for a failed ``doing`` (open / read / write) of the database."""
+        msg = str(exc)
+        low = msg.lower()
+        if "not a database" in low or "malformed" in low or "file is encrypted" in low:
+            return UserError(f"--store {self.path}: not a readable pbrbench results database ({msg}); pass another "
+                             "--store, or move the file away to start a new one")
+        if "full" in low:
+            return DiskError(f"results database {self.path}: cannot {doing} ({msg}); the disk is full: free some space "
+                             "or choose another place (with --store or PBRBENCH_STORE)")
+        if _is_readonly_error(exc):
+            return DiskError(f"results database {self.path}: cannot {doing} ({msg}); the file or its directory is not "
+                             "writable: fix the permissions or choose another place (with --store or PBRBENCH_STORE)")
+        if isinstance(exc, OSError):
+            return disk_error(exc, f"results database {self.path}", option="--store or PBRBENCH_STORE")
+        return UserError(f"results database {self.path}: cannot {doing} ({type(exc).__name__}: {msg})")
+
     # ------------------------------------------------------------------ plumbing
     def close(self):
-        self.conn.close()
+        self._close_quietly()
 
     def __enter__(self):
         return self
@@ -208,15 +333,34 @@ class Store:
 
     @contextmanager
     def transaction(self):
-        """One ``BEGIN IMMEDIATE`` transaction (takes the write lock up front: no deadlock)."""
-        self._retry(lambda: self.conn.execute("BEGIN IMMEDIATE"))
+        """One ``BEGIN IMMEDIATE`` transaction (takes the write lock up front: no deadlock).  A
+        failed write (full disk, read-only file) is rolled back and raised as a one-line error."""
+        if self.readonly:
+            raise DiskError(f"results database {self.path}: opened read-only (the file or its directory is not "
+                            "writable); this command needs to write it: fix the permissions or pass another --store")
+        try:
+            self._retry(lambda: self.conn.execute("BEGIN IMMEDIATE"))
+        except sqlite3.Error as exc:
+            raise self._error(exc, "write") from None
         try:
             yield self.conn
-        except BaseException:
-            self.conn.execute("ROLLBACK")
+        except BaseException as exc:
+            try:
+                self.conn.execute("ROLLBACK")
+            except sqlite3.Error:
+                pass
+            if isinstance(exc, sqlite3.Error):
+                raise self._error(exc, "write") from None
             raise
         else:
-            self._retry(lambda: self.conn.execute("COMMIT"))
+            try:
+                self._retry(lambda: self.conn.execute("COMMIT"))
+            except sqlite3.Error as exc:
+                try:
+                    self.conn.execute("ROLLBACK")
+                except sqlite3.Error:
+                    pass
+                raise self._error(exc, "write") from None
 
     def schema_version(self) -> int:
         row = self.conn.execute("SELECT max(version) FROM schema_migrations").fetchone()
@@ -225,12 +369,14 @@ class Store:
     def migrate(self) -> list[int]:
         """Apply the migrations not yet applied, in order; returns their versions."""
         with self.transaction() as c:
+            tables = {r[0] for r in c.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+            if tables and "schema_migrations" not in tables:
+                raise UserError(f"--store {self.path}: a SQLite database of something else (tables "
+                                f"{', '.join(sorted(tables)[:5])}), not a pbrbench results database; pass another --store")
             c.execute("CREATE TABLE IF NOT EXISTS schema_migrations (version INTEGER PRIMARY KEY, "
                       "description TEXT NOT NULL, applied TEXT NOT NULL)")
             done = {r[0] for r in c.execute("SELECT version FROM schema_migrations")}
             if done and max(done) > SCHEMA_VERSION:
-                from pbrbench.errors import UserError
-
                 raise UserError(f"{self.path}: results store has schema version {max(done)}, newer than this "
                                 f"pbrbench ({SCHEMA_VERSION}); upgrade pbrbench or use another --store")
             applied = []
@@ -272,7 +418,7 @@ class Store:
         d = dict(row)
         d["config"] = json.loads(d["config"] or "{}")
         d["comparison"] = json.loads(d["comparison"]) if d.get("comparison") else None
-        return d
+        return _with_liveness(d)
 
     def set_comparison(self, run_id: str, comparison: dict):
         """Store the run's regression comparison (computed once, by the run; the report reads it)."""
@@ -286,8 +432,6 @@ class Store:
 
     def resolve_run(self, ref: str | None) -> str:
         """A run id from a reference: an id, a unique prefix, ``latest`` / None, or ``-N``."""
-        from pbrbench.errors import UserError
-
         ids = [r[0] for r in self.conn.execute("SELECT id FROM runs ORDER BY time, rowid")]
         if not ids:
             raise UserError(f"{self.path}: no runs stored yet; run `pbrbench run` first")
@@ -322,7 +466,20 @@ class Store:
         for r in rows:
             r["config"] = json.loads(r["config"] or "{}")
             r["comparison"] = json.loads(r["comparison"]) if r.get("comparison") else None
+            _with_liveness(r)
         return rows[-limit:] if limit else rows
+
+    # ------------------------------------------------------------------ liveness
+    def set_process(self, run_id: str, *, host: str, pid: int, pid_start: str | None):
+        """Record the process that runs ``run_id`` (and a first heartbeat)."""
+        with self.transaction() as c:
+            c.execute("UPDATE runs SET host = ?, pid = ?, pid_start = ?, heartbeat = ? WHERE id = ?",
+                      (host, pid, pid_start, _now(), run_id))
+
+    def beat(self, run_id: str):
+        """Refresh the heartbeat of a running run."""
+        with self.transaction() as c:
+            c.execute("UPDATE runs SET heartbeat = ? WHERE id = ? AND status = 'running'", (_now(), run_id))
 
     # ------------------------------------------------------------------ scores and jobs
     def add_job_result(self, run_id: str, job_key: str, task: str, scores: Iterable, *,

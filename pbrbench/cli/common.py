@@ -32,23 +32,65 @@ def add_store(p):
                    help="results database (default: PBRBENCH_STORE or DIR/history.sqlite)")
 
 
+def int_at_least(lo: int, hi: int | None = None):
+    """An argparse type: an integer in [lo, hi] (a usage error, exit 1, otherwise)."""
+    import argparse
+
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+        if v < lo or (hi is not None and v > hi):
+            raise argparse.ArgumentTypeError(f"{v} is out of range: give an integer >= {lo}"
+                                             + (f" and <= {hi}" if hi is not None else ""))
+        return v
+    parse.__name__ = "integer"
+    return parse
+
+
+def nonnegative_float(text: str) -> float:
+    """An argparse type: a finite number >= 0."""
+    import argparse
+    import math
+
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if not math.isfinite(v) or v < 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a finite number >= 0")
+    return v
+
+
 def settings(args):
     """The settings of this invocation (argument, else environment, else default); the Mitsuba
     variant choice is configured with them before anything renders."""
+    from pbrbench.errors import UserError
     from pbrbench.render import variant
     from pbrbench.settings import Settings
 
+    for opt in ("cache", "out", "store", "variant"):
+        v = getattr(args, opt, None)
+        if isinstance(v, str) and not v.strip():
+            raise UserError(f"--{opt} is empty; give a {'variant name' if opt == 'variant' else 'path'}")
     s = Settings.resolve(args)
+    if s.variant:
+        variant.check_variant_name(s.variant)  # before anything runs: no junk run, no half render
     variant.configure(s)
     return s
 
 
 def open_store(s):
-    """The results database of settings ``s``; a one-line error when there is none yet."""
+    """The results database of settings ``s`` for reading: opened for writing when it can be
+    (a migration may be due), else read-only (an archived or read-only database still reads);
+    a one-line error when there is none yet or it is not a results database."""
     from pbrbench.bench.store import Store
     from pbrbench.errors import UserError
 
     p = Path(s.store_path())
+    if p.is_dir():
+        raise UserError(f"--store {p}: is a directory; give the path of a results database file")
     if not p.is_file():
         raise UserError(f"--store {p}: no results database there; run `pbrbench run` first or pass --store")
-    return Store(p)
+    return Store(p, readonly=None)

@@ -11,8 +11,12 @@ def register(sub):
     p.add_argument("run_b", help="the run to compare with it")
     p.add_argument("--task", default=None, help="only this task")
     p.add_argument("--all", action="store_true", help="also list unchanged scores")
-    p.add_argument("--rel", type=float, default=0.0, metavar="R",
+    from pbrbench.cli.common import nonnegative_float
+
+    p.add_argument("--rel", type=nonnegative_float, default=0.0, metavar="R",
                    help="also call a change unchanged when |b - a| <= R * |a| (default 0)")
+    p.add_argument("--html", nargs="?", const="", default=None, metavar="PATH",
+                   help="also write a comparison page (default: <out>/compare-<A>-<B>/index.html)")
     from pbrbench.cli.common import add_store
 
     add_store(p)
@@ -59,9 +63,11 @@ def run(args) -> int:
     from pbrbench.cli.common import open_store, settings
     from pbrbench.report.html import fmt
 
-    with open_store(settings(args)) as store:
+    st = settings(args)
+    with open_store(st) as store:
         a, b = store.resolve_run(args.run_a), store.resolve_run(args.run_b)
         rows = differences(store.scores(a, task=args.task), store.scores(b, task=args.task), rel=args.rel)
+        runs = (store.get_run(a), store.get_run(b))
     counts = {}
     for r in rows:
         counts[r["direction"]] = counts.get(r["direction"], 0) + 1
@@ -75,4 +81,11 @@ def run(args) -> int:
             print("  ".join(str(r[c]).ljust(w[c]) for c in cols)
                   + f"  {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s} {fmt(2 * r['se']):>9s}  "
                   f"{r['direction']} ({r['better']} is better)")
+    if args.html is not None:
+        from pathlib import Path
+
+        from pbrbench.report.html import write_compare
+
+        path = Path(args.html) if args.html else Path(st.out) / f"compare-{a}-{b}" / "index.html"
+        print(f"comparison page: {write_compare(path, runs, rows, counts).resolve()}")
     return 0

@@ -18,10 +18,15 @@ def run(args) -> int:
     from pbrbench.report.html import write_report
 
     st = settings(args)
+    from pbrbench.errors import disk_error
+
     with open_store(st) as store:
         run_id = store.resolve_run(args.run)
         run_dir = Path(st.out) / run_id
-        store.export_json(run_id, run_dir / "scores.json")
-        path = write_report(store, run_id, out_dir=run_dir)
+        try:
+            store.export_json(run_id, run_dir / "scores.json")
+            path = write_report(store, run_id, out_dir=run_dir)
+        except OSError as exc:
+            raise disk_error(exc, f"--out {run_dir}", option="--out") from None
     print(f"report: {path.resolve()}")
     return 0

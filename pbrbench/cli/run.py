@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import sys
 
-from pbrbench.cli.common import add_cache, add_quality, add_store, add_variant, settings
+from pbrbench.cli.common import (
+    add_cache,
+    add_quality,
+    add_store,
+    add_variant,
+    int_at_least,
+    settings,
+)
 
 EXIT_OK, EXIT_FAILED_JOBS, EXIT_REGRESSION = 0, 1, 2
 
@@ -21,16 +28,25 @@ def register(sub):
                    help="local: this process; dask: a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (default: start a LocalCluster)")
-    p.add_argument("--workers", type=int, default=None, metavar="N",
+    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
                    help="LocalCluster worker processes (one thread each; default: cores / 2)")
     add_store(p)
-    p.add_argument("--seed", type=int, default=0, help="seed handed to every job (default 0)")
+    p.add_argument("--seed", type=int_at_least(0, (1 << 63) - 1), default=0, help="seed handed to every job (default 0)")
     p.add_argument("--check", action="store_true",
                    help="compare with the regression baselines (tests/baselines/<quality>.json) and exit 2 on a regression")
     p.add_argument("--update-baselines", action="store_true",
                    help="rerun with more seeds, measure the spread and rewrite tests/baselines/<quality>.json")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run (its id)")
     p.add_argument("--no-report", action="store_true", help="store scores but write no HTML report")
+    p.add_argument("--algorithm", action="append", default=[], metavar="TASK=MODULE:FUNCTION[:NAME]",
+                   help="score your own algorithm beside the built-in ones (repeatable): MODULE is a dotted module "
+                        "on sys.path or a path to a .py file, FUNCTION has the task's signature (docs/plugins.md), "
+                        "NAME defaults to FUNCTION; e.g. photometric_stereo=./mine.py:solve")
+    p.add_argument("--algorithm-time-limit", type=float, default=None, metavar="SECONDS",
+                   help="time limit of one plugin call (one job); a plugin past it is killed and scored as failed "
+                        "(default 600; 0: run plugins in this process, without a limit)")
+    p.add_argument("--no-plugins", action="store_true",
+                   help="do not load the installed plugins (entry points of the group pbrbench.algorithms)")
     add_variant(p)
     add_cache(p)
     p.set_defaults(func=run)
@@ -54,6 +70,18 @@ def summary_lines(outcome) -> list[str]:
     return lines
 
 
+def failure_lines(scores) -> list[str]:
+    """One line per algorithm scored as failed somewhere (the messages are in the report)."""
+    failed, total = {}, {}
+    for s in scores:
+        if s["metric"] == "failed":
+            key = (s["task"], s["algorithm"])
+            total[key] = total.get(key, 0) + 1
+            failed[key] = failed.get(key, 0) + int(s["value"] == 1.0)
+    return [f"pbrbench: {a} ({t}) scored as failed on {n} of {total[(t, a)]} job(s); the reasons are in the report's "
+            "'Algorithms scored as failed'" for (t, a), n in failed.items() if n]
+
+
 def run(args) -> int:
     from pbrbench.bench.run import RunConfig, run_benchmark, update_baselines
     from pbrbench.errors import UserError
@@ -65,16 +93,35 @@ def run(args) -> int:
         raise UserError("--workers only applies to --executor dask")
     if args.scheduler and args.executor != "dask":
         raise UserError("--scheduler only applies to --executor dask")
+    if args.tasks:  # before anything is created on disk
+        from pbrbench.tasks import task_names
+
+        unknown = [t for t in args.tasks if t not in task_names()]
+        if unknown:
+            raise UserError(f"--tasks: unknown task(s) {', '.join(map(repr, unknown))}; choose from {', '.join(task_names())}")
     if args.resume and (args.tasks or args.update_baselines):
         raise UserError("--resume continues a stored run with its own tasks and quality; drop --tasks / --update-baselines")
-    cfg = RunConfig(tasks=args.tasks, quality=args.quality, seed=args.seed, executor=args.executor,
+    if args.resume and (args.algorithm or args.algorithm_time_limit is not None or args.no_plugins):
+        raise UserError("--resume reloads the run's own --algorithm specs and plugin settings; drop --algorithm, "
+                        "--algorithm-time-limit and --no-plugins")
+    limit = args.algorithm_time_limit
+    if limit is not None and limit < 0:
+        raise UserError(f"--algorithm-time-limit {limit:g}: give seconds >= 0 (0: no limit)")
+    from pbrbench.registry import DEFAULT_TIME_LIMIT
+
+    limit = DEFAULT_TIME_LIMIT if limit is None else (None if limit == 0 else limit)
+    tasks = [t.replace("-", "_") for t in args.tasks] if args.tasks else None
+    cfg = RunConfig(tasks=tasks, quality=args.quality, seed=args.seed, executor=args.executor,
                     scheduler=args.scheduler, workers=args.workers, resume=args.resume, report=not args.no_report,
-                    check=args.check, update_baselines=args.update_baselines)
+                    check=args.check, update_baselines=args.update_baselines, algorithms=list(args.algorithm),
+                    algorithm_time_limit=limit, entry_points=not args.no_plugins)
     o = run_benchmark(cfg, settings=st)
     print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
           f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
     for line in summary_lines(o):
         print(line)
+    for line in failure_lines(o.scores):
+        print(line, file=sys.stderr)
     code = EXIT_OK
     if o.errors:
         print(f"{len(o.errors)} job(s) failed (tracebacks in the report); rerun them with "
@@ -94,9 +141,10 @@ def run(args) -> int:
                 print(f"  missing: {k}")
             code = EXIT_REGRESSION
     elif args.check:
-        print(f"--check: no baselines for quality {cfg.quality}; create them with "
+        # no baselines is a set-up mistake, not a regression (exit 2 means regressions only)
+        print(f"pbrbench: error: --check: no baselines for quality {cfg.quality}; create them with "
               f"`pbrbench run --quality {cfg.quality} --update-baselines`", file=sys.stderr)
-        code = EXIT_REGRESSION
+        code = EXIT_FAILED_JOBS
     if args.update_baselines:
         path = update_baselines(cfg, o, settings=st)
         print(f"baselines written: {path}")

@@ -10,17 +10,25 @@ def register(sub):
 
 
 def run(args) -> int:
+    """One line per file (or per scene): text from the files is printed through
+    :func:`pbrbench.errors.printable` (no terminal control sequences, no line breaks)."""
     from pbrbench.cli.common import settings
+    from pbrbench.errors import UserError, printable
     from pbrbench.scene.load import library_files, load_scene_file
 
-    for f in library_files(settings(args).scenes):
+    st = settings(args)
+    files = library_files(st.scenes)
+    if not files:
+        raise UserError(f"scene library {st.scenes}: no .toml scene files there; set PBRBENCH_SCENES to a directory "
+                        "of scene files")
+    for f in files:
         specs = load_scene_file(f)
         if args.expand:
             for s in specs:
-                print(f"{s.name:44s} {s.description}")
+                print(f"{printable(s.name):44s} {printable(s.description)}")
         else:
             n = f"  ({len(specs)} scenes)" if len(specs) > 1 else ""
             s = specs[0]
-            ref = f" [{s.reference}]" if s.reference else ""
-            print(f"{f.stem:28s} {s.description}{ref}{n}")
+            ref = f" [{printable(s.reference)}]" if s.reference else ""
+            print(f"{printable(f.stem):28s} {printable(s.description)}{ref}{n}")
     return 0

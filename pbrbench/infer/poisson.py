@@ -28,7 +28,14 @@ import scipy.sparse as sp
 import scipy.sparse.linalg
 from scipy.sparse.csgraph import connected_components
 
-from pbrbench.checks import as_float_array, check_finite, check_mask, check_method
+from pbrbench.checks import (
+    as_float_array,
+    check_finite,
+    check_int,
+    check_mask,
+    check_method,
+    check_tolerance,
+)
 
 __all__ = ["solve_gradient_field", "METHODS"]
 
@@ -234,11 +241,9 @@ def solve_gradient_field(gx, gy, *, mask=None, wx=None, wy=None, tol: float = 1e
     check_finite(gy, "gy", where=m)
     wx = _check_weight(wx, shape, "wx")
     wy = _check_weight(wy, shape, "wy")
-    tol = float(tol)
-    if not (np.isfinite(tol) and tol > 0):
-        raise ValueError(f"tol: must be a finite number > 0, got {tol!r}")
-    if maxiter is not None and int(maxiter) < 1:
-        raise ValueError(f"maxiter: must be a positive integer or None, got {maxiter!r}")
+    tol = check_tolerance(tol)
+    if maxiter is not None:
+        maxiter = check_int(maxiter, "maxiter", 1)
 
     full = bool(m.all())
     unit = all(w is None or np.all(w == 1.0) for w in (wx, wy))

@@ -1,6 +1,6 @@
 """Scores: each function compares an estimate with the ground truth.
 
-One module per area (``hdr``, ``lightness``, ``specular``, ``normals``, ``sfs``); the public
+One module per area (``hdr``, ``lightness``, ``specular``, ``normals``, ``sfs``, ``interreflection``); the public
 functions are re-exported here, so ``from pbrbench.metrics import lmse`` works.  Each module's
 ``METRICS`` table gives every score name its direction ("lower" / "higher" is better), unit and
 meaning; :data:`METRICS` merges them and :func:`metric` looks one up (``docs/adding.md`` says how
@@ -14,6 +14,7 @@ from pbrbench.metrics.hdr import (
     log_radiance_rmse_extremes,
     response_rmse,
 )
+from pbrbench.metrics.interreflection import chromaticity_error, radiosity_scores
 from pbrbench.metrics.lightness import (
     albedo_abs_error,
     intrinsic_lmse,
@@ -48,9 +49,10 @@ from pbrbench.metrics.table import STATUS, Metric, merge
 
 
 def _tables():
-    from pbrbench.metrics import hdr, lightness, normals, sfs, specular
+    from pbrbench.metrics import hdr, interreflection, lightness, normals, sfs, specular
 
-    return merge(STATUS, normals.METRICS, sfs.METRICS, lightness.METRICS, hdr.METRICS, specular.METRICS)
+    return merge(STATUS, normals.METRICS, sfs.METRICS, lightness.METRICS, hdr.METRICS, specular.METRICS,
+                 interreflection.METRICS)
 
 
 METRICS: dict[str, Metric] = _tables()
@@ -67,9 +69,9 @@ def metric(name: str) -> Metric:
 __all__ = [
     "METRICS", "Metric", "metric", "specular_scores",
     "albedo_abs_error", "albedo_relative_error", "ambiguity_aware_scores", "angular_error_map",
-    "angular_error_stats", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
+    "angular_error_stats", "chromaticity_error", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
     "height_errors", "height_rmse", "height_rmse_scaled", "intrinsic_lmse", "invalid_fraction",
     "lmse", "lmse_map", "log_radiance_rmse", "log_radiance_rmse_extremes", "mask_iou",
-    "normal_angle", "ratio_errors", "removal_errors", "response_rmse", "sfs_scores", "si_mse",
+    "normal_angle", "radiosity_scores", "ratio_errors", "removal_errors", "response_rmse", "sfs_scores", "si_mse",
     "specular_mask_from_twin",
 ]

@@ -1,6 +1,7 @@
 """Content-addressed render cache: one directory per ground truth, written atomically.
 
-Key: sha256 of (canonical scene spec hash, quality, variant, mitsuba version, ground-truth format).
+Key: sha256 of (canonical scene spec hash, the quality profile's render settings, variant, mitsuba
+version, ground-truth format).
 Entry: ``<root>/<key[:2]>/<key>/gt.exr`` (float32 multichannel, lossless) and ``gt.json``
 (metadata, with the EXR's size and sha256).  An entry is written into a temporary directory
 beside its final place and renamed into place in one step, so a render killed at any moment
@@ -17,10 +18,14 @@ import importlib.metadata
 import json
 import os
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
-from pbrbench.io import read_exr, write_exr
+import numpy as np
+
+from pbrbench.errors import UserError, disk_error
+from pbrbench.io import read_exr, write_exr, write_text
 from pbrbench.render.groundtruth import GT_FORMAT, GroundTruth, render_ground_truth
 from pbrbench.render.variant import choose_variant, current_choice
 from pbrbench.scene.spec import SceneSpec
@@ -46,7 +51,9 @@ def cache_key(spec: SceneSpec, quality: str, variant: str) -> str:
         mv = importlib.metadata.version("mitsuba")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover
         mv = "?"
-    blob = json.dumps({"scene": spec.content_hash(), "quality": quality, "variant": variant,
+    from pbrbench.render.quality import get_quality
+
+    blob = json.dumps({"scene": spec.content_hash(), "quality": get_quality(quality).render_key(), "variant": variant,
                        "mitsuba": mv, "format": GT_FORMAT}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -88,25 +95,46 @@ class RenderCache:
         return GroundTruth(arrays, meta)
 
     def put(self, key: str, gt: GroundTruth) -> Path:
+        """Store ``gt`` under ``key``: written into a temporary directory, read back and compared,
+        then renamed into place.  A disk fault (full, read-only, no permission) raises a one-line
+        :class:`~pbrbench.errors.DiskError` and leaves no entry."""
         final = self.entry_dir(key)
-        final.parent.mkdir(parents=True, exist_ok=True)
-        tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:12]}-", dir=final.parent))
+        try:
+            final.parent.mkdir(parents=True, exist_ok=True)
+            tmp = Path(tempfile.mkdtemp(prefix=f".tmp-{key[:12]}-", dir=final.parent))
+        except OSError as exc:
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE") from None
         try:
             exr = tmp / "gt.exr"
             write_exr(exr, gt.arrays)
+            back = read_exr(exr)  # what a later reader will see must be what was rendered
+            if set(back) != set(gt.arrays) or any(back[k].tobytes() != np.asarray(gt.arrays[k], np.float32).tobytes()
+                                                   for k in back):
+                raise OSError(f"{exr}: the written EXR does not read back identically")
             meta = dict(gt.meta, cache_key=key, exr_size=exr.stat().st_size, exr_sha256=_sha256(exr))
-            (tmp / "gt.json").write_text(json.dumps(meta, indent=1, sort_keys=True))
+            write_text(tmp / "gt.json", json.dumps(meta, indent=1, sort_keys=True))
             try:
                 os.rename(tmp, final)
             except OSError:
                 # another process finished the same entry first: keep theirs
                 shutil.rmtree(tmp, ignore_errors=True)
+        except OSError as exc:
+            shutil.rmtree(tmp, ignore_errors=True)
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE") from None
         except BaseException:
             shutil.rmtree(tmp, ignore_errors=True)
             raise
         return final
 
+    def _check_root(self):
+        if self.root.exists() and not self.root.is_dir():
+            from pbrbench.errors import DiskError
+
+            raise DiskError(f"render cache {self.root}: is a file, not a directory; choose another with --cache or "
+                            "PBRBENCH_CACHE")
+
     def entries(self) -> list[Path]:
+        self._check_root()
         return sorted(p for p in (self.root / "gt").glob("*/*") if p.is_dir() and not p.name.startswith(".tmp-"))
 
     def info(self) -> dict:
@@ -116,9 +144,45 @@ class RenderCache:
         return {"root": str(self.root), "entries": len(entries), "bytes": size, "stale_temporaries": len(stale)}
 
     def clear(self) -> int:
+        """Remove every entry (and unfinished temporaries); returns how many entries there were.
+        A cache that cannot be emptied (read-only, no permission) raises a one-line DiskError."""
         n = len(self.entries())
-        shutil.rmtree(self.root / "gt", ignore_errors=True)
+        gt = self.root / "gt"
+        if gt.exists() and not gt.is_dir():
+            raise disk_error(NotADirectoryError(20, "Not a directory", str(gt)), f"render cache {self.root}",
+                             option="--cache or PBRBENCH_CACHE")
+        if not gt.exists():
+            return n
+        errors: list[OSError] = []
+        shutil.rmtree(gt, onexc=lambda fn, path, exc: errors.append(exc)) if sys.version_info >= (3, 12) else \
+            shutil.rmtree(gt, onerror=lambda fn, path, info: errors.append(info[1]))
+        if errors or gt.exists():
+            exc = errors[0] if errors else OSError(f"{gt} could not be removed")
+            raise disk_error(exc, f"render cache {self.root}", option="--cache or PBRBENCH_CACHE")
         return n
+
+
+def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
+    """The last line of defence against a useless render: refuse (UserError naming the scene) a
+    ground truth whose radiance is non-finite anywhere or zero in every pixel (every scene has a
+    light that emits: the schema refuses the others).  Such a render is never cached.  The message
+    says whether the camera sees geometry (the coverage pass) or not."""
+    where = f"scene {spec.name!r}" + (f" ({spec.source})" if spec.source else "")
+    for name in ("radiance", "direct"):
+        if name in gt:
+            bad = int((~np.isfinite(gt[name])).sum())
+            if bad:
+                raise UserError(f"{where}: the rendered {name} has {bad} non-finite value(s) (NaN or inf); the scene's "
+                                "numbers are out of the renderer's range (check sizes, positions and powers); not cached")
+    if (gt["radiance"] > 0).any():
+        return
+    if "coverage" in gt and not (gt["coverage"] > 0).any():
+        raise UserError(f"{where}: the rendered radiance is zero in every pixel and the camera sees no geometry: check "
+                        "camera.origin / target / half_width and that the shapes lie between near_clip and far_clip; "
+                        "not cached")
+    raise UserError(f"{where}: the rendered radiance is zero in every pixel although the camera sees geometry: "
+                    "no light reaches the visible surfaces (light directions point from the scene toward the "
+                    "source; check the lights' positions and directions and the albedos); not cached")
 
 
 def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCache | None = None,
@@ -136,6 +200,7 @@ def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCac
         if gt is not None:
             return gt, True
     gt = render_ground_truth(spec, quality, variant=var, progress=progress)
+    check_ground_truth(spec, gt)
     gt.meta["cache_key"] = key
     cache.put(key, gt)
     return gt, False

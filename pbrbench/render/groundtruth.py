@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import gc
 import importlib.metadata
+import math
 import platform
 import time
 from dataclasses import dataclass, field
@@ -39,7 +40,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 5  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 7  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "depth")  # AOVs whose half-sample deltas are kept
 
@@ -134,6 +135,10 @@ class _Renderer:
         self.res = q.resolution(spec.render.resolution)
         self.spp = q.spp(spec.render.spp)
         self.seed = spec.render.seed
+        self.target = q.noise_target          # (median, rms) relative sd of the passes, or None
+        self.max_spp = int(round(q.max_spp_factor * self.spp))
+        self.mask = None                      # pure pixels (from the AOVs, rendered first)
+        self.spp_per_pass: dict[str, int] = {}
         self.progress = progress
         self.cpu0 = time.process_time()
         self.t0 = time.perf_counter()
@@ -144,7 +149,13 @@ class _Renderer:
 
     def render_pair(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
         """Mean ``(a + b) / 2`` and signed half-difference ``(a - b) / 2`` of two half-sample
-        renders with independent seeds (``|(a - b) / 2|`` is the sd of the mean, one-sample)."""
+        renders with independent seeds (``|(a - b) / 2|`` is the sd of the mean, one-sample).
+
+        With a noise target (:attr:`pbrbench.render.quality.Quality.noise_target`) the first pair,
+        at the scene's samples per pixel, is the pilot: where its relative noise over the lit pure
+        pixels (:func:`pass_noise`) is above the target, a second pair with the missing samples
+        (noise ~ 1/sqrt(spp)), at most ``max_spp`` in all, is rendered with its own seeds and
+        merged into the two halves, weighted by their samples, so no sample is wasted."""
         mi = self.mi
         half = max(1, self.spp // 2)
         # samplers such as multijitter round the count up (with a warning): use what they take
@@ -152,17 +163,31 @@ class _Renderer:
         mi.set_log_level(mi.LogLevel.Error)
         try:
             scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw), optimize=False)
+            half = int(scene.sensors()[0].sampler().sample_count())
+            base = 2 * (self.seed * 1000 + seed_offset)
+            a = np.array(mi.render(scene, seed=base, spp=half), dtype=np.float64)[..., :3]
+            b = np.array(mi.render(scene, seed=base + 1, spp=half), dtype=np.float64)[..., :3]
+            n = half
+            if self.target is not None and self.mask is not None:
+                med, rms = pass_noise(0.5 * (a + b), 0.5 * (a - b), self.mask)
+                need = max((med / self.target[0]) ** 2, (rms / self.target[1]) ** 2)
+                total = min(int(math.ceil(need * n)), max(self.max_spp // 2, n))
+                extra = total - n
+                if extra >= max(1, n // 4):
+                    top = base + 2_000_003   # seeds no other pass uses
+                    a2 = np.array(mi.render(scene, seed=top, spp=extra), dtype=np.float64)[..., :3]
+                    b2 = np.array(mi.render(scene, seed=top + 1, spp=extra), dtype=np.float64)[..., :3]
+                    a = (n * a + extra * a2) / (n + extra)
+                    b = (n * b + extra * b2) / (n + extra)
+                    n += extra
         finally:
             mi.set_log_level(level)
-        half = int(scene.sensors()[0].sampler().sample_count())
         self.spp_used = 2 * half
-        base = 2 * (self.seed * 1000 + seed_offset)
-        a = np.array(mi.render(scene, seed=base, spp=half), dtype=np.float32)[..., :3]
-        b = np.array(mi.render(scene, seed=base + 1, spp=half), dtype=np.float32)[..., :3]
+        self.spp_per_pass[what] = 2 * n
         del scene
         gc.collect()
         self._tick(what)
-        return 0.5 * (a + b), 0.5 * (a - b)
+        return (0.5 * (a + b)).astype(np.float32), (0.5 * (a - b)).astype(np.float32)
 
     def aovs(self) -> dict[str, np.ndarray]:
         """The AOVs (albedo, normals, position, depth, coverage) as the mean of two half-sample
@@ -183,6 +208,19 @@ class _Renderer:
             films.append(_film_arrays(scene))
         obj_avg = [self._object_ids(scene, f["si.I"]) for f in films]  # footprint-averaged: mixed pixels -> -1
         del scene
+        if all(float(f["cov.A"].max()) == 0.0 for f in films) and any(float(f["alb.R"].max()) > 0 for f in films):
+            # scalar variants leave the nested integrator's alpha at 0: measure the covered fraction of
+            # each pixel as the albedo AOV of the same samples with every surface white instead
+            d = scene_dict(mi, self.spec, self.res, half, integrator={"type": "aov", "aovs": "w:albedo"},
+                           drop_occluders=False)
+            for v in d.values():
+                if isinstance(v, dict) and "bsdf" in v:
+                    v["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
+            white = mi.load_dict(d, optimize=False)
+            for k in range(2):
+                mi.render(white, seed=base + k, spp=half)
+                films[k]["cov.A"] = _film_arrays(white)["w.R"]
+            del white
         R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)  # columns: left, up, view direction
         origin, view = M[:3, 3], R[:, 2]
 
@@ -255,6 +293,23 @@ class _Renderer:
         return out
 
 
+def pass_noise(image: np.ndarray, delta: np.ndarray, mask: np.ndarray | None = None, lit: float = 0.05) -> tuple[float, float]:
+    """Median and RMS relative sd ``|delta| / image`` (channel means) over the *lit pure* pixels:
+    inside ``mask`` (the ground truth's pure pixels) and above ``lit`` of the pass's peak there —
+    the pixels the tasks measure (shadowed and silhouette pixels are left to the tasks' own
+    domains).  Without a mask (or no lit pure pixel) every pixel above ``lit`` of the peak counts."""
+    lum = np.asarray(image, np.float64).mean(-1)
+    sd = np.abs(np.asarray(delta, np.float64)).mean(-1)
+    m = np.asarray(mask, bool) if mask is not None else np.ones(lum.shape, bool)
+    if not m.any() or lum[m].max() <= 0:
+        m = np.ones(lum.shape, bool)
+    sel = m & (lum > lit * max(float(lum[m].max()), 1e-30))
+    if not sel.any():
+        return 0.0, 0.0
+    rel = sd[sel] / lum[sel]
+    return float(np.median(rel)), float(np.sqrt(np.mean(rel ** 2)))
+
+
 def relative_noise(image: np.ndarray, delta: np.ndarray) -> np.ndarray:
     """Per-pixel relative sd ``|delta| / image`` (channel means) over the pixels above 1e-3 of
     the image's peak (the lit pixels)."""
@@ -272,15 +327,17 @@ def noise_summary(arrays: dict, spec) -> dict:
         names = [f"light{k:02d}.{kind}" for k in range(len(spec.light_set)) for kind in ("direct", "radiance")]
     else:
         names = ["radiance", "direct"]
-    used = np.concatenate([relative_noise(arrays[n], arrays[f"{n}_delta"]) for n in names])
+    mask = arrays["mask"] > 0.5 if "mask" in arrays else None
+    lit = np.array([pass_noise(arrays[n], arrays[f"{n}_delta"], mask) for n in names])
     return {
         "radiance_rel_sd_rms": float(np.sqrt(np.mean(rel ** 2))),
         "radiance_rel_sd_median": float(np.median(rel)),
-        "inputs_rel_sd_rms": float(np.sqrt(np.mean(used ** 2))),
-        "inputs_rel_sd_median": float(np.median(used)),
+        "inputs_rel_sd_median": float(lit[:, 0].max()),
+        "inputs_rel_sd_rms": float(lit[:, 1].max()),
         "inputs": names,
         "note": "per-pixel sd of the image estimate from two half-sample renders (|a-b|/2), relative to the "
-                "pixel value; pixels above 1e-3 of the peak; inputs = the passes the tasks consume",
+                "pixel value; radiance: pixels above 1e-3 of the peak; inputs: the passes the tasks consume, "
+                "over their lit pure pixels (mask, above 5 % of the pass's peak), the worst pass",
     }
 
 
@@ -298,6 +355,9 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
     path = {"type": "path", "max_depth": md, "rr_depth": spec.render.rr_depth}
     direct = {"type": "path", "max_depth": 2}
     arrays: dict[str, np.ndarray] = {}
+    # the AOVs first: their pure-pixel mask is where the noise target is measured
+    arrays.update(r.aovs())
+    r.mask = arrays["mask"] > 0.5
     # a direct-only scene (max_depth 2: e.g. an area-source twin, which isolates the source's
     # effect) renders each pass once: its radiance is its direct light
     direct_only = md == 2
@@ -330,7 +390,6 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
     if spec.has_glossy:
         arrays["diffuse_only"], arrays["diffuse_only_delta"] = r.render_pair(
             "diffuse-only twin", 0, integrator=path, diffuse_only=True)
-    arrays.update(r.aovs())
 
     choice = current_choice()
     meta = {
@@ -344,6 +403,8 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         "resolution": list(r.res),
         "spp": getattr(r, "spp_used", r.spp),
         "spp_nominal": r.spp,
+        "spp_per_pass": dict(r.spp_per_pass),
+        "noise_target": list(r.target) if r.target is not None else None,
         "seed": spec.render.seed,
         "max_depth": md,
         "variant": choice.variant if choice else None,

@@ -20,6 +20,10 @@ second, independent render, and returns records
    independent render (another seed), per-pixel t-test; ``light_sum``: the per-light images sum
    to the all-lights render, per-pixel t-test.  For these records ``measured`` is the number of
    pixel tests rejected at a family-wise alpha of 0.01 (Bonferroni) and ``bound`` is 0.
+6. Interreflection (:mod:`pbrbench.render.proofs_interreflection`, :mod:`.proofs_cap`,
+   :mod:`.proofs_gain`): ``radiosity_groove``, ``radiosity_room``, ``radiosity_cap`` (the
+   radiosity model and the concave cap's closed form, with photometric stereo, against the path
+   tracer) and ``gain_curve`` (the kernel integral against Mitsuba's irradiance meter).
 
 The validation scenes state their ``standard`` settings; ``quality`` scales them as for the
 library (draft: resolution / 4 with at least 32 px, spp / 16), and each bound holds at draft.
@@ -347,7 +351,15 @@ def check_decomposition(quality: str = "draft", cache=None, *, alpha: float = 0.
 
 
 # --------------------------------------------------------------------------- registry
-# every check: (quality, cache, *, diagnostics_dir) -> records
+def _ir(module: str):
+    """The interreflection check modules beside this one (imported when a check runs)."""
+    import importlib
+
+    return importlib.import_module(f"pbrbench.render.{module}")
+
+
+# every check: (quality, cache, *, diagnostics_dir, figures, photometric_stereo) -> records; ``figures``
+# (a dict, when given) collects plot dicts, ``photometric_stereo`` is the method the cap check runs
 CHECKS: dict[str, Callable[..., list[Record]]] = {
     "sphere_directional": lambda q, c, **kw: check_sphere(q, c, kind="directional"),
     "sphere_point": lambda q, c, **kw: check_sphere(q, c, kind="point"),
@@ -355,12 +367,21 @@ CHECKS: dict[str, Callable[..., list[Record]]] = {
     "integrating_sphere": lambda q, c, **kw: check_integrating_sphere(q, c),
     "depth": lambda q, c, **kw: check_depth(q, c),
     "decomposition": lambda q, c, **kw: check_decomposition(q, c, diagnostics_dir=kw.get("diagnostics_dir")),
+    "radiosity_groove": lambda q, c, **kw: _ir("proofs_interreflection").check_groove(q, c, figures=kw.get("figures")),
+    "radiosity_room": lambda q, c, **kw: _ir("proofs_interreflection").check_room(q, c, figures=kw.get("figures")),
+    "radiosity_cap": lambda q, c, **kw: _ir("proofs_cap").check_cap(q, c, figures=kw.get("figures"),
+                                                                     photometric_stereo=kw.get("photometric_stereo")),
+    "gain_curve": lambda q, c, **kw: _ir("proofs_gain").check_gain_curve(q, c, figures=kw.get("figures")),
 }
 
 
-def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None, diagnostics_dir=None) -> list[Record]:
+def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None, diagnostics_dir=None,
+               figures=None, photometric_stereo=None) -> list[Record]:
     """Run the named checks (default: all) at ``quality``; returns every record.  Statistical
-    checks that fail write diagnostic images into ``diagnostics_dir`` when it is given."""
+    checks that fail write diagnostic images into ``diagnostics_dir`` when it is given; checks
+    with figures add them (name -> plot dict) to ``figures`` when it is given; the cap check runs
+    ``photometric_stereo`` (a method of :data:`pbrbench.infer.photometric_stereo.METHODS`, which
+    this layer does not import) on its renders."""
     get_quality(quality)
     names = list(CHECKS) if not checks else list(checks)
     unknown = [n for n in names if n not in CHECKS]
@@ -371,7 +392,8 @@ def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None
     _quiet_mitsuba()
     out: list[Record] = []
     for n in names:
-        recs = CHECKS[n](quality, cache, diagnostics_dir=diagnostics_dir)
+        recs = CHECKS[n](quality, cache, diagnostics_dir=diagnostics_dir, figures=figures,
+                         photometric_stereo=photometric_stereo)
         out += recs
         if progress is not None:
             progress(n, recs)

@@ -11,7 +11,12 @@ of the benchmark to run:
   evenly spaced; ``None`` keeps the whole sweep);
 * ``algorithm_options``: per ``"task/algorithm"`` budget options (fewer iterations, a fixed
   polynomial degree) merged into the algorithm's options by
-  :meth:`pbrbench.registry.Algorithm.options_for`.
+  :meth:`pbrbench.registry.Algorithm.options_for`;
+* ``noise_target`` / ``max_spp_factor``: the relative noise (median, RMS over the lit pure
+  pixels) every rendered pass should reach; a pass rendered at the scene's samples per pixel that
+  is noisier gets the missing samples, up to ``max_spp_factor`` times the scene's count
+  (:meth:`pbrbench.render.groundtruth._Renderer.render_pair`); the achieved noise and samples are
+  recorded with the ground truth.
 
 ``draft`` is the CI setting (seconds per scene), ``standard`` the benchmark, ``high`` four times the
 samples.  Every ground truth and every run records its profile's name.  No code compares a
@@ -37,6 +42,8 @@ class Quality:
     sweep_keep: int | None = None
     algorithm_options: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     description: str = ""
+    noise_target: tuple[float, float] | None = None   # (median, rms) relative sd of every rendered pass
+    max_spp_factor: float = 1.0                         # at most this many times the scene's spp
 
     def resolution(self, res: tuple[int, int]) -> tuple[int, int]:
         w, h = res
@@ -47,6 +54,13 @@ class Quality:
 
     def spp(self, spp: int) -> int:
         return max(min(self.min_spp, spp), round(spp * self.spp_scale))
+
+    def render_key(self) -> dict:
+        """What of this profile decides a render's content (part of the render cache's key)."""
+        return {"name": self.name, "res_scale": self.res_scale, "spp_scale": self.spp_scale,
+                "min_res": self.min_res, "min_spp": self.min_spp,
+                "noise_target": list(self.noise_target) if self.noise_target else None,
+                "max_spp_factor": self.max_spp_factor}
 
     def pick(self, full, short) -> tuple:
         """``short`` (a task's representative subset) when this profile runs short subsets and
@@ -83,15 +97,22 @@ PRESETS: dict[str, Quality] = {
         "draft", 0.25, 1 / 16, short_subset=True, sweep_keep=2,
         # the regression run must stay short (every job also runs its two half-sample replicates):
         # iteration budgets of the iterative SFS methods halved, Mitsunaga-Nayar with a fixed
-        # degree instead of its held-out degree search (about 20x slower)
+        # degree instead of its held-out degree search (about 20x slower); coarser meshes for the
+        # radiosity models
         algorithm_options=_frozen({
             "sfs/horn1989": {"max_iter": 50}, "sfs/horn1989+estimated_light": {"max_iter": 50},
             "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
             "hdr/mitsunaga1999": {"degree": 5},
+            # the interreflection task's forward models: 8 patches across the view instead of 16
+            **{f"interreflection/{m}": {"cells": 8}
+               for m in ("local", "radiosity:1", "radiosity:2", "radiosity:4", "radiosity")},
         }),
         description="CI: resolution / 4 (at least 32 px), spp / 16, short scene lists, two values per sweep"),
-    "standard": Quality("standard", 1.0, 1.0, description="the benchmark: the scene files' own settings"),
-    "high": Quality("high", 1.0, 4.0, description="standard resolution, 4x the samples"),
+    "standard": Quality("standard", 1.0, 1.0, noise_target=(0.01, 0.03), max_spp_factor=2.0,
+                        description="the benchmark: the scene files' resolution and samples, up to 2x the samples "
+                                    "where a pass is noisier than 1 % median / 3 % rms"),
+    "high": Quality("high", 1.0, 4.0, noise_target=(0.005, 0.015), max_spp_factor=4.0,
+                    description="standard resolution, 4x the samples, up to 16x where a pass is noisier than 0.5 % / 1.5 %"),
 }
 
 

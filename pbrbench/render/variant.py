@@ -14,9 +14,15 @@ Why so careful: with libLLVM 14 or 15, drjit aborts the whole process (SIGABRT, 
 Cannot select ... fminimum") on its first kernel compile.  Python cannot catch that, so those
 libraries must never be chosen, even when ``DRJIT_LIBLLVM_PATH`` names one.
 
-The LLVM version is read from the file name (``libLLVM-15.so.1``, ``libLLVM.so.19.1``) or,
-when the name has no version, from ``LLVMGetVersion`` (which exists only since LLVM 16) in a
-short subprocess, so no unsuitable libLLVM is ever loaded into this process.
+A library's file name is never trusted (``libLLVM-19.so`` may be a symbolic link to LLVM 15):
+the path is resolved to the real file, whose version is read from the file itself, the ELF
+``SONAME`` it was built with (``libLLVM-15.so.1``, ``libLLVM.so.19.1``), or, when it has none,
+from ``LLVMGetVersion`` (which exists only since LLVM 16) in a short subprocess, so no
+unsuitable libLLVM is ever loaded into this process.
+
+``DRJIT_LIBLLVM_PATH`` set to ``os.devnull`` means "no libLLVM" (pbrbench sets it so when none
+is usable, and child processes inherit it): it is not reported as a bad path.  Each notice is
+printed once per process.
 """
 
 from __future__ import annotations
@@ -54,14 +60,67 @@ class VariantChoice:
 
 
 def llvm_major_from_name(path: str) -> int | None:
-    """Major LLVM version encoded in a library file name, or None if the name has none."""
-    for candidate in (os.path.basename(path), os.path.basename(os.path.realpath(path))):
-        m = re.search(r"libLLVM[-.]?(\d+)", candidate)
-        if m:
-            return int(m.group(1))
-        m = re.search(r"libLLVM\.so\.(\d+)", candidate)
-        if m:
-            return int(m.group(1))
+    """Major LLVM version encoded in a library file name (``libLLVM-15.so.1``,
+    ``libLLVM.so.19.1``), or None if the name has none.  Used on the SONAME a library carries,
+    never on the name a file happens to have."""
+    candidate = os.path.basename(path)
+    m = re.search(r"libLLVM[-.]?(\d+)", candidate)
+    if m:
+        return int(m.group(1))
+    m = re.search(r"libLLVM\.so\.(\d+)", candidate)
+    if m:
+        return int(m.group(1))
+    return None
+
+
+def elf_soname(path: str) -> str | None:
+    """The ``DT_SONAME`` of an ELF shared library (read from the file, without loading it), or
+    None when the file is not ELF or has none."""
+    import struct
+
+    try:
+        with open(path, "rb") as f:
+            ident = f.read(16)
+            if len(ident) < 16 or ident[:4] != b"\x7fELF":
+                return None
+            is64, end = ident[4] == 2, "<" if ident[5] == 1 else ">"
+            hdr = f.read(48 if is64 else 36)
+            if is64:
+                shoff, = struct.unpack_from(end + "Q", hdr, 24)
+                shentsize, shnum = struct.unpack_from(end + "HH", hdr, 42)
+            else:
+                shoff, = struct.unpack_from(end + "I", hdr, 16)
+                shentsize, shnum = struct.unpack_from(end + "HH", hdr, 30)
+            if not shoff or not shnum or shnum > 100000:
+                return None
+            f.seek(shoff)
+            table = f.read(shentsize * shnum)
+            secs = []
+            for i in range(shnum):
+                b = table[i * shentsize:(i + 1) * shentsize]
+                if is64:
+                    _, typ, _, _, off, size, link, _, _, entsize = struct.unpack_from(end + "IIQQQQIIQQ", b)
+                else:
+                    _, typ, _, _, off, size, link, _, _, entsize = struct.unpack_from(end + "IIIIIIIIII", b)
+                secs.append((typ, off, size, link, entsize))
+            for typ, off, size, link, _entsize in secs:
+                if typ != 6 or link >= len(secs) or size > 1 << 24:  # SHT_DYNAMIC
+                    continue
+                f.seek(off)
+                dyn = f.read(size)
+                step = 16 if is64 else 8
+                fmt = end + ("qQ" if is64 else "iI")
+                for k in range(0, len(dyn) - step + 1, step):
+                    tag, val = struct.unpack_from(fmt, dyn, k)
+                    if tag == 0:
+                        break
+                    if tag == 14:  # DT_SONAME
+                        _, str_off, str_size, _, _ = secs[link]
+                        f.seek(str_off + val)
+                        raw = f.read(min(256, max(str_size - val, 0)))
+                        return raw.split(b"\x00", 1)[0].decode("ascii", "replace") or None
+    except (OSError, struct.error, ValueError):
+        return None
     return None
 
 
@@ -75,24 +134,40 @@ _PROBE = (
 )
 
 
-def llvm_major(path: str) -> int | None:
-    """Major version of the libLLVM at ``path`` (None if it cannot be loaded).
+_MAJOR_CACHE: dict[tuple, int | None] = {}
 
-    A library without ``LLVMGetVersion`` is older than LLVM 16 and reported as 0.
+
+def llvm_major(path: str) -> int | None:
+    """Major version of the libLLVM at ``path`` (None if it does not exist or cannot be loaded).
+
+    Symbolic links are resolved and the version is read from the real file: its ELF SONAME, else
+    ``LLVMGetVersion`` called in a subprocess (a library without it is older than LLVM 16 and is
+    reported as 0).  The file's name is not trusted.
     """
-    if not os.path.isfile(path):
+    real = os.path.realpath(path)
+    if not os.path.isfile(real):
         return None
-    major = llvm_major_from_name(path)
-    if major is not None:
-        return major
     try:
-        out = subprocess.run([sys.executable, "-c", _PROBE, path], capture_output=True, text=True, timeout=30)
-        return int(out.stdout.strip()) if out.returncode == 0 else None
-    except (subprocess.SubprocessError, ValueError, OSError):
+        st = os.stat(real)
+    except OSError:
         return None
+    key = (real, st.st_size, st.st_mtime_ns)
+    if key in _MAJOR_CACHE:
+        return _MAJOR_CACHE[key]
+    soname = elf_soname(real)
+    major = llvm_major_from_name(soname) if soname else None
+    if major is None:
+        try:
+            out = subprocess.run([sys.executable, "-c", _PROBE, real], capture_output=True, text=True, timeout=30)
+            major = int(out.stdout.strip()) if out.returncode == 0 else None
+        except (subprocess.SubprocessError, ValueError, OSError):
+            major = None
+    _MAJOR_CACHE[key] = major
+    return major
 
 
 _PREFERRED: dict = {}
+_NOTICED: set[str] = set()
 
 
 def configure(settings) -> None:
@@ -154,25 +229,45 @@ def cuda_available() -> bool:
     return False
 
 
+def _notice(notes: list[str]) -> str | None:
+    """The notice of a choice, printed on stderr the first time it is made in this process (the
+    choice is made several times per command: its notice reaches the user once)."""
+    if not notes:
+        return None
+    text = "pbrbench: " + "; ".join(notes)
+    if text not in _NOTICED:
+        _NOTICED.add(text)
+        print(text, file=sys.stderr, flush=True)
+    return text
+
+
 def choose_variant(explicit: str | None = None) -> VariantChoice:
     """Decide the Mitsuba variant and set ``DRJIT_LIBLLVM_PATH`` accordingly.
 
     Must be called before ``import drjit`` / ``import mitsuba``.
     """
     explicit = explicit or _settings().variant or None
+    if explicit:
+        check_variant_name(explicit)
     user_llvm = os.environ.get("DRJIT_LIBLLVM_PATH")
+    if user_llvm == os.devnull:  # "no libLLVM", set by pbrbench (or the user): nothing to report
+        user_llvm = None
     notes = []
     llvm_path = None
     if user_llvm:
         major = llvm_major(user_llvm)
         if major is not None and major >= MIN_LLVM:
-            llvm_path = user_llvm
+            llvm_path = os.path.realpath(user_llvm)
         else:
-            why = "does not exist" if major is None else f"is LLVM {major}, older than {MIN_LLVM}"
+            real = os.path.realpath(user_llvm)
+            via = f" (a link to {real})" if real != os.path.abspath(user_llvm) and os.path.exists(real) else ""
+            why = ("does not exist or is not a loadable libLLVM" if major is None
+                   else f"is LLVM {major}{via}, older than {MIN_LLVM}")
             notes.append(f"DRJIT_LIBLLVM_PATH={user_llvm} {why}; ignoring it")
             os.environ.pop("DRJIT_LIBLLVM_PATH", None)
     if llvm_path is None:
         llvm_path, _ = find_llvm()
+        llvm_path = os.path.realpath(llvm_path) if llvm_path else None
     if llvm_path is not None:
         os.environ["DRJIT_LIBLLVM_PATH"] = llvm_path
     else:
@@ -187,19 +282,56 @@ def choose_variant(explicit: str | None = None) -> VariantChoice:
             )
         if explicit.startswith("cuda") and not cuda_available():
             raise UserError(f"variant {explicit!r} needs a working CUDA device, none found; choose llvm_ad_rgb or scalar_rgb")
-        return VariantChoice(explicit, llvm_path, "explicit", "; ".join(notes) or None)
+        return VariantChoice(explicit, llvm_path, "explicit", _notice(notes))
     if cuda_available():
-        return VariantChoice("cuda_ad_rgb", llvm_path, "CUDA device found", "; ".join(notes) or None)
+        return VariantChoice("cuda_ad_rgb", llvm_path, "CUDA device found", _notice(notes))
     if llvm_path is not None:
-        return VariantChoice("llvm_ad_rgb", llvm_path, f"libLLVM >= {MIN_LLVM} at {llvm_path}", "; ".join(notes) or None)
+        return VariantChoice("llvm_ad_rgb", llvm_path, f"libLLVM >= {MIN_LLVM} at {llvm_path}", _notice(notes))
     notes.append(
-        f"pbrbench: no CUDA device and no libLLVM >= {MIN_LLVM}: rendering with scalar_rgb "
+        f"no CUDA device and no libLLVM >= {MIN_LLVM}: rendering with scalar_rgb "
         "(slow); apt-get install libllvm19 for the fast LLVM variant"
     )
-    return VariantChoice("scalar_rgb", None, "fallback", "; ".join(notes))
+    return VariantChoice("scalar_rgb", None, "fallback", _notice(notes))
 
 
 _STATE: dict = {}
+
+
+def known_variants() -> list[str] | None:
+    """The variants of the installed mitsuba build, read from its ``config.py`` without importing
+    mitsuba (which would load drjit); None when that cannot be read."""
+    import ast
+    import importlib.util
+
+    try:
+        spec = importlib.util.find_spec("mitsuba")
+    except (ImportError, ValueError):
+        return None
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    for d in spec.submodule_search_locations:
+        cfg = os.path.join(d, "config.py")
+        try:
+            tree = ast.parse(open(cfg, encoding="utf-8").read())
+        except (OSError, SyntaxError, ValueError):
+            continue
+        for node in tree.body:
+            if isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "MI_VARIANTS" for t in node.targets):
+                try:
+                    return [str(v) for v in ast.literal_eval(node.value)]
+                except ValueError:
+                    return None
+    return None
+
+
+def check_variant_name(name: str) -> str:
+    """``name`` if the installed mitsuba has that variant, else a one-line UserError."""
+    known = known_variants()
+    if not isinstance(name, str) or not name or (known is not None and name not in known):
+        rgb = [v for v in (known or RGB_VARIANTS) if v.endswith("_rgb")]
+        raise UserError(f"--variant {name!r} (or PBRBENCH_VARIANT) is not a variant of this mitsuba build; choose one of "
+                        f"{', '.join(rgb)}")
+    return name
 
 
 def mitsuba(variant: str | None = None):
@@ -212,14 +344,40 @@ def mitsuba(variant: str | None = None):
             )
         return _STATE["mi"]
     choice = choose_variant(variant)
-    if choice.notice:
-        print(choice.notice, file=sys.stderr)
-    import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+    mi = _import_mitsuba()
 
     if choice.variant not in mi.variants():
         raise UserError(f"variant {choice.variant!r} is not in this mitsuba build; choose one of {', '.join(mi.variants())}")
     mi.set_variant(choice.variant)
     _STATE.update(mi=mi, choice=choice)
+    return mi
+
+
+def _import_mitsuba():
+    """``import mitsuba``; when pbrbench disabled libLLVM (``DRJIT_LIBLLVM_PATH=/dev/null``),
+    drjit's own two lines about failing to load it are dropped: the notice of
+    :func:`choose_variant` has said so once, in words that say what to do."""
+    if os.environ.get("DRJIT_LIBLLVM_PATH") != os.devnull or "drjit" in sys.modules:
+        import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+
+        return mi
+    import tempfile
+
+    with tempfile.TemporaryFile() as tmp:
+        sys.stderr.flush()
+        saved = os.dup(2)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            import mitsuba as mi  # noqa: PLC0415 - must follow choose_variant
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        tmp.seek(0)
+        text = tmp.read().decode("utf-8", "replace")
+    for line in text.splitlines():
+        if os.devnull in line or "jitc_llvm_init" in line:
+            continue
+        print(line, file=sys.stderr)
     return mi
 
 

@@ -177,11 +177,14 @@ def load_figures(run_dir: Path) -> dict[str, list[dict]]:
 
 
 CHAPTER = re.compile(r"^(?:linear:)?Figs? (\d+)\.(\d+)")
+SECTION = re.compile(r"^(?:linear:)?§(\d+)\.(\d+)(?:\.(\d+))?")   # an effect the chapter names without a figure
 
 
 def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
     """Every figure whose name starts with a chapter figure number (``Fig 1.18 ...``, ``Figs
-    1.4-1.6 ...``), ordered by that number: the chapter gallery."""
+    1.4-1.6 ...``), ordered by that number, then those that start with a section of the chapter
+    (``§1.3.5 colour bleeding ...``: effects the text describes without a figure), in section
+    order after the figures of that chapter: the chapter gallery."""
     out = []
     for task, jobs in figures.items():
         for j in jobs:
@@ -189,8 +192,39 @@ def chapter_gallery(figures: dict[str, list[dict]]) -> list[dict]:
                 for f in j[kind]:
                     m = CHAPTER.match(f["name"])
                     if m:
-                        out.append(dict(f, task=task, job=j["label"], kind=kind, order=(int(m.group(1)), int(m.group(2)))))
+                        order = (int(m.group(1)), 0, int(m.group(2)), 0)
+                    else:
+                        m = SECTION.match(f["name"])
+                        if not m:
+                            continue
+                        order = (int(m.group(1)), 1, int(m.group(2)), int(m.group(3) or 0))
+                    out.append(dict(f, task=task, job=j["label"], kind=kind, order=order))
     return sorted(out, key=lambda f: (f["order"], f["name"]))
+
+
+TIME_SHARE = 0.15   # an algorithm above this share of the job time needs a reason in the report
+
+
+def algorithm_time(scores: list[dict], info: dict) -> list[dict]:
+    """Seconds per (task, algorithm) summed over jobs (one score per job and algorithm counts;
+    the time of the half-sample replicates is not in the scores), the share of the total, and,
+    above :data:`TIME_SHARE`, the reason the task gives (its ``cost_notes``)."""
+    per: dict[tuple[str, str], float] = defaultdict(float)
+    seen = set()
+    for s in scores:
+        k = (s["task"], s.get("job", ""), s["algorithm"])
+        if k in seen:
+            continue
+        seen.add(k)
+        per[(s["task"], s["algorithm"])] += float(s.get("seconds") or 0.0)
+    total = sum(per.values()) or 1.0
+    out = []
+    for (task, alg), sec in sorted(per.items(), key=lambda kv: -kv[1]):
+        share = sec / total
+        note = info.get(task, {}).get("cost_notes", {}).get(alg, "")
+        out.append({"task": task, "algorithm": alg, "seconds": sec, "share": share,
+                    "flag": share > TIME_SHARE, "note": note})
+    return out
 
 
 def _anchor(text: str) -> str:
@@ -322,9 +356,12 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
                  ("pbrbench", run.get("pbrbench_version") or ""), ("mitsuba", run.get("mitsuba_version") or ""),
                  ("drjit", run.get("drjit_version") or ""), ("numpy", run.get("numpy_version") or ""),
                  ("machine", run.get("machine") or ""),
-                 ("configuration", json.dumps({k: v for k, v in run["config"].items() if k != "task_info"}, sort_keys=True)),
+                 ("configuration", json.dumps({k: v for k, v in run["config"].items() if k not in ("task_info", "environment")},
+                                              sort_keys=True)),
+                 ("dependency lock", _lock_text(run["config"].get("environment", {}).get("lock"))),
                  ("scores", str(len(scores)))]
     gallery = chapter_gallery(figures)
+    time_shares = algorithm_time(scores, info)
     failures = [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
                 for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())]
     return {
@@ -333,8 +370,18 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         "has_gallery": bool(gallery),
         "comparison": comparison, "baseline_quality": (comparison or {}).get("baseline_quality"),
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf, "failures": failures,
-        "n_scores": len(scores),
+        "n_scores": len(scores), "time_shares": time_shares,
     }
+
+
+def _lock_text(lock: dict | None) -> str:
+    if not lock:
+        return "not recorded"
+    mism = lock.get("mismatches") or []
+    return (f"{lock.get('lock_file', '')} sha256 {str(lock.get('lock_sha256') or '')[:12]}; "
+            f"{len(lock.get('packages') or {})} packages, "
+            + (f"{len(mism)} differ from the lock: " + ", ".join(f"{m['name']} {m['installed']} (lock {m['locked']})" for m in mism[:8])
+               if mism else "all as locked"))
 
 
 def _job_errors(errors: dict[str, str]) -> list[dict]:
@@ -366,3 +413,22 @@ def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None 
     index = out_dir / "index.html"
     _write(index, render_page("index.html", dict(ctx, page="index")))
     return index
+
+
+def write_compare(path: str | Path, runs: tuple[dict, dict], rows: list[dict], counts: dict) -> Path:
+    """A page of the differences between two runs (``rows`` of
+    :func:`pbrbench.cli.compare.differences`), grouped by task, changes first, with the noise
+    allowance of each comparison (2 combined standard errors)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    (path.parent / "style.css").write_text((TEMPLATE_DIR / "style.css").read_text(), encoding="utf-8")
+    order = {"worse": 0, "better": 1, "only-a": 2, "only-b": 3, "same": 4}
+    by_task = defaultdict(list)
+    for r in sorted(rows, key=lambda r: (order.get(r["direction"], 9), r["scene"], r["condition"], r["algorithm"], r["metric"])):
+        by_task[r["task"]].append(dict(r, a_text=fmt(r["a"]), b_text=fmt(r["b"]), d_text=fmt(r["delta"]),
+                                       n_text=fmt(2 * r["se"]) if math.isfinite(r["se"]) else "–"))
+    tasks = [{"name": t, "rows": rs, "counts": {d: sum(1 for r in rs if r["direction"] == d) for d in order}}
+             for t, rs in sorted(by_task.items())]
+    _write(path, render_page("compare.html", {"run": runs[1], "runs": runs, "tasks": tasks, "counts": counts,
+                                              "page": "compare", "nav_tasks": [], "has_gallery": False}))
+    return path

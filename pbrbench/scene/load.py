@@ -3,6 +3,11 @@
 A bad file raises :class:`~pbrbench.errors.SceneError` whose message names the file, the key
 path and the reason, with a hint where one helps, e.g.
 ``x.toml: lights[1].drection: unknown key (did you mean 'direction'?)``.
+
+Loading also reads and checks every data file the scene names (:mod:`pbrbench.scene.data`), and
+refuses files whose renders would be far larger than any scene of the library (a sweep of
+thousands of values, thousands of lights, the largest resolution with the most samples): see
+:data:`LIMITS`.  Setting ``PBRBENCH_ALLOW_LARGE=1`` (the ``allow_large`` setting) lifts them.
 """
 
 from __future__ import annotations
@@ -20,6 +25,23 @@ from pydantic import BaseModel, ValidationError
 
 from pbrbench.errors import SceneError
 from pbrbench.scene import spec as S
+
+# Far above the library (at most 12 scenes per file, 12 lights, 4e7 samples per scene, 9e7 per
+# file): a file beyond one of these is almost surely a mistake, and would run for hours.
+LIMITS = {
+    "scenes_per_file": 1000,        # scenes a sweep expands into
+    "lights_per_scene": 1000,       # entries of lights + light_set
+    "samples_per_scene": 2e10,      # width x height x spp x passes, at the file's own settings
+    "samples_per_file": 1e11,       # the same summed over a sweep
+}
+_OVERRIDE = "set PBRBENCH_ALLOW_LARGE=1 to render it anyway"
+MAX_SCENE_FILE_BYTES = 16 * 2**20
+
+
+def _allow_large() -> bool:
+    from pbrbench.settings import Settings
+
+    return Settings.from_env().allow_large
 
 
 def scenes_dir(directory: str | os.PathLike | None = None) -> Path:
@@ -79,6 +101,15 @@ def _fields_at(loc: tuple) -> set[str]:
     return names
 
 
+def _tags_for(loc: tuple) -> str:
+    """The ``type`` values valid at a location (for a table that lacks its ``type`` key)."""
+    unions = {"lights": S.Light, "light_set": S.Light, "shapes": S.Shape, "materials": S.Material, "albedo": S.Texture}
+    key = next((p for p in reversed(loc) if isinstance(p, str) and p in unions), None)
+    if key is None:
+        return "the documented types (pbrbench/scene/library/README.md)"
+    return ", ".join(repr(_tag_of(m)) for m in _models_in(unions[key]))
+
+
 def _tag_of(model: type[BaseModel]) -> str | None:
     f = model.model_fields.get("type")
     if f is None:
@@ -115,7 +146,7 @@ def _loc_str(loc: tuple) -> str:
 
 def format_validation_error(path: str, err: ValidationError) -> str:
     """One line for the first (most useful) error of a pydantic ValidationError."""
-    errors = err.errors()
+    errors = err.errors(include_url=False)
     # Prefer errors that are not union-branch noise (e.g. "input should be a valid tuple").
     order = ("extra_forbidden", "union_tag_invalid", "value_error", "missing")
 
@@ -125,6 +156,9 @@ def format_validation_error(path: str, err: ValidationError) -> str:
 
     e = sorted(errors, key=rank)[0]
     loc = _clean_loc(tuple(e["loc"]))
+    sub = e.get("ctx", {}).get("error")
+    if isinstance(sub, S.At):
+        loc = loc + sub.sub
     where = _loc_str(loc)
     t = e["type"]
     if t == "extra_forbidden":
@@ -134,18 +168,25 @@ def format_validation_error(path: str, err: ValidationError) -> str:
         hint = f" (did you mean {close[0]!r}?)" if close else f" (valid keys: {', '.join(sorted(_fields_at(parent)))})"
         return f"{path}: {where}: unknown key{hint}"
     if t == "missing":
+        if loc and isinstance(loc[-1], int):
+            return f"{path}: {_loc_str(loc[:-1])}: too few values (item {loc[-1]} is missing)"
         return f"{path}: {where}: required key is missing"
     if t == "union_tag_invalid":
         ctx = e.get("ctx", {})
         return f"{path}: {where}.type: unknown type {ctx.get('tag')!r}; choose one of {ctx.get('expected_tags')}"
     if t == "union_tag_not_found":
-        return f"{path}: {where}: missing key 'type'; choose one of {e.get('ctx', {}).get('discriminator', 'the documented types')}"
+        return f"{path}: {where}: missing key 'type'; choose one of {_tags_for(loc)}"
     msg = re.sub(r"^Value error, ", "", e["msg"])
     if not loc:
         return f"{path}: {msg}"
     got = e.get("input")
-    got_s = "" if isinstance(got, (dict, list)) or got is None or "got" in msg else f" (got {got!r})"
+    got_s = "" if isinstance(got, (dict, list)) or got is None or "got" in msg else f" (got {_short_repr(got)})"
     return f"{path}: {where}: {msg}{got_s}"
+
+
+def _short_repr(v) -> str:
+    r = repr(v)
+    return r if len(r) <= 80 else r[:77] + "..."
 
 
 # ------------------------------------------------------------------------- sweeps
@@ -183,12 +224,15 @@ def _set_path(doc, parts, value, path, key):
     cur[last] = value
 
 
+_UNSAFE = re.compile(r"[^A-Za-z0-9_.\-=+ ]")
+
+
 def _fmt_value(v) -> str:
     if isinstance(v, float):
         return f"{v:g}"
     if isinstance(v, list):
         return "_".join(_fmt_value(x) for x in v)  # "/" is a path separator and not allowed in names
-    return str(v)
+    return _UNSAFE.sub("_", str(v))  # a label is part of a file name
 
 
 def expand_sweep(doc: dict, path: str) -> list[dict]:
@@ -199,6 +243,7 @@ def expand_sweep(doc: dict, path: str) -> list[dict]:
     if not sweep:
         return [doc]
     keys = list(sweep)
+    n = 1
     for k in keys:
         if not isinstance(sweep[k], list) or not sweep[k]:
             raise SceneError(f"{path}: sweep.{k}: must be a non-empty list of values, e.g. [0.1, 0.5, 0.9]")
@@ -206,6 +251,18 @@ def expand_sweep(doc: dict, path: str) -> list[dict]:
             _parse_key_path(k)
         except ValueError:
             raise SceneError(f"{path}: sweep.{k}: not a key path; write e.g. 'materials.paper.albedo' or 'lights[0].irradiance'") from None
+        seen = set()
+        for v in sweep[k]:
+            r = repr(v)
+            if r in seen:
+                raise SceneError(f"{path}: sweep.{k}: the value {_short_repr(v)} appears twice; give each value once "
+                                 "(the scenes would repeat)")
+            seen.add(r)
+        n *= len(sweep[k])
+    if n > LIMITS["scenes_per_file"] and not _allow_large():
+        sizes = " x ".join(str(len(sweep[k])) for k in keys)
+        raise SceneError(f"{path}: sweep: expands into {n} scenes ({sizes} values), more than the limit of "
+                         f"{LIMITS['scenes_per_file']} per file; sweep fewer values, or {_OVERRIDE}")
     out = []
     for combo in itertools.product(*(sweep[k] for k in keys)):
         d = copy.deepcopy(doc)
@@ -226,8 +283,17 @@ def _short(key: str) -> str:
 def parse_file(path: str | Path) -> dict:
     """Read a TOML file, raising SceneError with line/column on a syntax error."""
     p = Path(path)
+    if p.is_dir():
+        raise SceneError(f"{path}: is a directory; give a .toml scene file or a name from `pbrbench scenes`")
     if not p.is_file():
         raise SceneError(f"{path}: no such scene file; give a name from `pbrbench scenes` or a path to a .toml file")
+    try:
+        size = p.stat().st_size
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
+    if size > MAX_SCENE_FILE_BYTES:
+        raise SceneError(f"{path}: {size / 2**20:.1f} MiB, larger than any scene file should be (limit "
+                         f"{MAX_SCENE_FILE_BYTES // 2**20} MiB); put large data in .npy files the scene names")
     try:
         with open(p, "rb") as f:
             return tomllib.load(f)
@@ -235,31 +301,83 @@ def parse_file(path: str | Path) -> dict:
         raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see pbrbench/scene/library/README.md)") from None
     except UnicodeDecodeError:
         raise SceneError(f"{path}: not a UTF-8 text file; scene files are TOML") from None
+    except OSError as exc:
+        raise SceneError(f"{path}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
+    except RecursionError:
+        raise SceneError(f"{path}: nested too deeply to be a scene file") from None
 
 
-def validate_doc(doc: dict, path: str, base_dir: str) -> S.SceneSpec:
-    if not isinstance(doc.get("name", ""), str):
-        raise SceneError(f"{path}: name: must be a string")
+def validate_doc(doc: dict, path: str, base_dir: str, *, member: str | None = None) -> S.SceneSpec:
+    """One document (a file, or one scene of its sweep: ``member``) -> SceneSpec, with its data
+    files read and checked."""
+    where = f"{path} (scene {member!r} of the sweep)" if member else str(path)
+    name = doc.get("name", "")
+    if not isinstance(name, str):
+        raise SceneError(f"{where}: name: must be a string, got {_short_repr(name)}")
     try:
         spec = S.SceneSpec.model_validate({**doc, "base_dir": base_dir, "source": str(path)})
     except ValidationError as exc:
-        raise SceneError(format_validation_error(str(path), exc)) from None
-    for f in spec.referenced_files():
-        if not os.path.isfile(f):
-            raise SceneError(f"{path}: referenced file {f} does not exist; fix the 'path' key (relative to the scene file)")
+        raise SceneError(format_validation_error(where, exc)) from None
+    from pbrbench.scene.data import MAX_HEIGHT, check_data_file
+
+    for key, rel, kind in spec.referenced_data():
+        peak = check_data_file(base_dir, rel, kind, where=f"{where}: {key}")
+        if kind == "height":
+            i = int(key.split("[")[1].split("]")[0])
+            zs = abs(spec.shapes[i].z_scale)
+            if peak * zs > MAX_HEIGHT:
+                raise SceneError(f"{where}: shapes[{i}].z_scale: heights times z_scale reach {peak * zs:.3g}, above "
+                                 f"{MAX_HEIGHT:g}; lower z_scale or the heights")
     return spec
+
+
+def _check_lights(doc: dict, path: str) -> None:
+    n = sum(len(doc[k]) for k in ("lights", "light_set") if isinstance(doc.get(k), list))
+    if n > LIMITS["lights_per_scene"] and not _allow_large():
+        parts = ", ".join(f"{len(doc[k])} in {k}" for k in ("lights", "light_set") if isinstance(doc.get(k), list) and doc[k])
+        raise SceneError(f"{path}: lights/light_set: {n} lights ({parts}), more than the limit of "
+                         f"{LIMITS['lights_per_scene']} per scene; use fewer lights, or {_OVERRIDE}")
+
+
+def _check_work(specs: list[S.SceneSpec], path: str) -> None:
+    """Refuse renders far beyond the library's (samples = width x height x spp x passes)."""
+    if _allow_large():
+        return
+    from pbrbench.render.groundtruth import n_passes
+
+    total = 0.0
+    for s in specs:
+        w, h = s.render.resolution
+        passes = n_passes(s)
+        n = float(w) * h * s.render.spp * passes
+        total += n
+        if n > LIMITS["samples_per_scene"]:
+            raise SceneError(
+                f"{path}: render: scene {s.name!r} needs {n:.3g} samples ({w} x {h} px x {s.render.spp} spp x {passes} "
+                f"passes), more than the limit of {LIMITS['samples_per_scene']:.3g} per scene; lower render.resolution, "
+                f"render.spp or the number of lights, or {_OVERRIDE}")
+    if total > LIMITS["samples_per_file"]:
+        raise SceneError(f"{path}: render: the {len(specs)} scenes of the file need {total:.3g} samples together, more than "
+                         f"the limit of {LIMITS['samples_per_file']:.3g} per file; sweep fewer values or lower "
+                         f"render.resolution / render.spp, or {_OVERRIDE}")
 
 
 def load_scene_file(path: str | Path) -> list[S.SceneSpec]:
     """Load one scene file; a file with a ``[sweep]`` returns several specs."""
     doc = parse_file(path)
+    _check_lights(doc, str(path))
     if "sweep" in doc:
         docs = expand_sweep(doc, str(path))
         sweep = doc["sweep"]
-        specs = [validate_doc({**d, "sweep": {}}, str(path), str(Path(path).parent)) for d in docs]
+        base = str(Path(path).parent)
+        specs = [validate_doc({**d, "sweep": {}}, str(path), base, member=d["name"] if len(docs) > 1 else None)
+                 for d in docs]
+        _check_work(specs, str(path))
         # keep the sweep table on the specs for the record (it does not enter the hash)
         return [s.model_copy(update={"sweep": sweep}) for s in specs]
-    return [validate_doc(doc, str(path), str(Path(path).parent))]
+    specs = [validate_doc(doc, str(path), str(Path(path).parent))]
+    _check_work(specs, str(path))
+    return specs
 
 
 def library_files(directory: str | os.PathLike | None = None) -> list[Path]:

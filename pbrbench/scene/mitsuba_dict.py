@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import tempfile
 
 import numpy as np
 
@@ -18,14 +17,12 @@ from pbrbench.scene import spec as S
 from pbrbench.scene.textures import texture_array
 from pbrbench.shading import surfaces
 
-_SCRATCH = None
-
 
 def _scratch_dir() -> str:
-    global _SCRATCH
-    if _SCRATCH is None:
-        _SCRATCH = tempfile.mkdtemp(prefix="pbrbench-mesh-")
-    return _SCRATCH
+    """This process's scratch directory for meshes, removed at exit (:mod:`pbrbench.scratch`)."""
+    from pbrbench.scratch import scratch_dir
+
+    return scratch_dir("mesh")
 
 
 def _rgb(mi, v):
@@ -102,11 +99,9 @@ def heightfield_mesh(shape: S.Heightfield, base_dir: str):
         surf = surfaces.evaluate(shape.surface, x, y, **shape.params)
         z, fx, fy, mask = surf.z, surf.fx, surf.fy, surf.mask
     else:
-        z = np.load(os.path.join(base_dir, shape.path)).astype(float)
-        if z.ndim != 2 or not np.isfinite(z).all():
-            from pbrbench.errors import SceneError
+        from pbrbench.scene.data import load_data
 
-            raise SceneError(f"{shape.path}: a height array must be a finite 2-D .npy array")
+        z = load_data(base_dir, shape.path, "height", where=f"height array {os.path.join(base_dir, shape.path)}")
         if z.shape != (n, n):
             from scipy.ndimage import zoom
 
@@ -130,6 +125,12 @@ def heightfield_mesh(shape: S.Heightfield, base_dir: str):
     faces = np.concatenate([t1, t2])
     m = mask.reshape(-1)
     faces = faces[m[faces].all(axis=1)]
+    if not (np.isfinite(verts).all() and np.isfinite(nrm).all()) or len(faces) == 0:
+        from pbrbench.errors import SceneError
+
+        what = shape.surface or shape.path
+        raise SceneError(f"heightfield {what!r}: the mesh is {'empty' if len(faces) == 0 else 'not finite'}; check its "
+                         "params, half_width and z_scale")
     return verts, nrm.reshape(-1, 3), uvs, faces
 
 
@@ -154,8 +155,15 @@ def shape_dict(mi, spec: S.SceneSpec, i: int, shape, *, diffuse_only: bool = Fal
         key = hashlib.sha256(shape.model_dump_json().encode() + spec.content_hash().encode()).hexdigest()[:24]
         path = os.path.join(_scratch_dir(), f"hf_{key}.ply")
         if not os.path.exists(path):  # built once per process, reused by every pass
-            write_ply(path + ".tmp", *heightfield_mesh(shape, spec.base_dir))
-            os.replace(path + ".tmp", path)
+            mesh = heightfield_mesh(shape, spec.base_dir)
+            try:
+                write_ply(path + ".tmp", *mesh)
+                os.replace(path + ".tmp", path)
+            except OSError as exc:
+                from pbrbench.errors import disk_error
+
+                raise disk_error(exc, f"scratch directory {os.path.dirname(path)} (heightfield meshes)",
+                                 option="TMPDIR") from None
         d.update(type="ply", filename=path, face_normals=False)
         if shape.rotate:
             d["to_world"] = rot

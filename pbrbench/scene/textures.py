@@ -31,14 +31,10 @@ def mondrian(t: S.MondrianTexture) -> np.ndarray:
 
 
 def image(t: S.ImageTexture, base_dir: str) -> np.ndarray:
-    a = np.load(os.path.join(base_dir, t.path))
-    if a.ndim == 2:
-        a = np.repeat(a[..., None], 3, axis=2)
-    if a.ndim != 3 or a.shape[2] != 3 or not np.isfinite(a).all() or a.min() < 0 or a.max() > 1:
-        from pbrbench.errors import SceneError
+    """The albedo image of ``t`` (read safely and checked: :mod:`pbrbench.scene.data`)."""
+    from pbrbench.scene.data import load_data
 
-        raise SceneError(f"{t.path}: an albedo image must be a finite (H, W) or (H, W, 3) array in [0, 1]")
-    return a.astype(np.float32)
+    return load_data(base_dir, t.path, "texture", where=f"texture {os.path.join(base_dir, t.path)}")
 
 
 def texture_array(t, base_dir: str) -> np.ndarray:

@@ -73,6 +73,34 @@ def cup(x, y, *, radius: float = 1.0, center=(0.0, 0.0)):
     return -z, -fx, -fy, mask
 
 
+def spherical_cap(x, y, *, radius: float = 1.0, half_angle_deg: float = 60.0, center=(0.0, 0.0)):
+    """Concave spherical cap (a bowl) of half-angle ``alpha``, opening toward the camera, rim at ``z = 0``.
+
+    .. math::  z = R\\cos\\alpha - \\sqrt{R^2 - r^2}, \\qquad r < R \\sin\\alpha
+
+    with ``r`` the distance from ``center``: the part of the sphere of radius ``R`` centred at
+    ``(cx, cy, R cos(alpha))`` whose points make an angle below ``alpha`` with the downward axis
+    from that centre.  The rim (``r = R sin(alpha)``) lies at ``z = 0``, the bottom at
+    ``z = -R (1 - cos(alpha))``; the unit normal points toward the sphere's centre (the concave
+    side, toward the camera).  ``half_angle_deg`` must lie in (0, 90]: beyond 90 degrees the bowl
+    overhangs and is not a height field.  ``half_angle_deg = 90`` is :func:`cup`.
+    """
+    alpha = float(half_angle_deg)
+    if not 0.0 < alpha <= 90.0:
+        raise ValueError(f"half_angle_deg: must be in (0, 90] (a bowl that does not overhang), got {half_angle_deg!r}")
+    if not float(radius) > 0:
+        raise ValueError(f"radius: must be > 0, got {radius!r}")
+    a = np.radians(alpha)
+    dx, dy = x - center[0], y - center[1]
+    r2 = dx * dx + dy * dy
+    mask = r2 < (radius * np.sin(a)) ** 2
+    root = np.sqrt(np.where(mask, radius * radius - r2, 1.0))
+    z = np.where(mask, radius * np.cos(a) - root, 0.0)
+    fx = np.where(mask, dx / root, 0.0)
+    fy = np.where(mask, dy / root, 0.0)
+    return z, fx, fy, mask
+
+
 def vase(x, y, *, half_height: float = 0.9, r0: float = 0.45, a1: float = 0.2, a2: float = 0.08):
     """Surface of revolution about the y axis, ``z = sqrt(r(y)^2 - x^2)``.
 
@@ -150,6 +178,7 @@ def plane(x, y, *, fx: float = 0.0, fy: float = 0.0, extent: float = 1.0):
 SURFACES = {
     "sphere": sphere,
     "cup": cup,
+    "spherical_cap": spherical_cap,
     "vase": vase,
     "bumps": bumps,
     "groove": groove,

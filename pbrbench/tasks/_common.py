@@ -15,6 +15,7 @@ import zlib
 
 import numpy as np
 
+from pbrbench.scene.geometry import camera_rotation, light_vectors, nominal_light  # noqa: F401 (re-exported)
 from pbrbench.tasks.base import Job, Score
 
 # ------------------------------------------------------------------------------- scene lists
@@ -51,65 +52,8 @@ def sweep_value(spec, key: str):
 
 
 # ----------------------------------------------------------------------------- light vectors
-
-
-def camera_rotation(camera) -> np.ndarray:
-    """(3, 3) rotation whose rows are the camera axes (x right, y up, z toward the camera) in
-    world coordinates: ``R @ v`` expresses a world vector ``v`` in the camera frame."""
-    o = np.asarray(camera.origin, float)
-    t = np.asarray(camera.target, float)
-    up = np.asarray(camera.up, float)
-    z = o - t
-    z /= np.linalg.norm(z)
-    x = np.cross(up, z)
-    x /= np.linalg.norm(x)
-    y = np.cross(z, x)
-    return np.stack([x, y, z])
-
-
-def _mean(v) -> float:
-    return float(np.mean(np.asarray(v, float)))
-
-
-def nominal_light(light, camera) -> tuple[np.ndarray, float]:
-    """Nominal distant-source model of one light of a SceneSpec: ``(unit direction in the camera
-    frame, irradiance at the camera target)``.
-
-    * directional: its direction and (channel-mean) irradiance;
-    * area rectangle: direction ``normalize(center - target)``; irradiance of a small source,
-      ``L A cos(theta_s) / d^2`` (radiance, area, the emitter's tilt away from the target,
-      distance) -- the value a user would measure at the target;
-    * point: direction ``normalize(position - target)``, irradiance ``I / d^2``.
-    """
-    R = camera_rotation(camera)
-    target = np.asarray(camera.target, float)
-    kind = light.type
-    if kind == "directional":
-        d = np.asarray(light.direction, float)
-        e = _mean(light.irradiance)
-    elif kind == "area":
-        d = np.asarray(light.center, float) - target
-        dist = float(np.linalg.norm(d))
-        n = np.asarray(light.normal, float)
-        cos_s = max(0.0, float(np.dot(-d / dist, n / np.linalg.norm(n))))
-        e = _mean(light.radiance) * light.size[0] * light.size[1] * cos_s / dist ** 2
-    elif kind == "point":
-        d = np.asarray(light.position, float) - target
-        e = _mean(light.intensity) / float(np.dot(d, d))
-    else:
-        raise ValueError(f"light: a {kind!r} light has no direction; photometric models need "
-                         "directional, area or point lights")
-    d = R @ (d / np.linalg.norm(d))
-    return d, e
-
-
-def light_vectors(spec, which: str = "light_set") -> np.ndarray:
-    """(K, 3) source vectors (unit direction x irradiance) in the camera frame, from the spec's
-    ``light_set`` (default) or ``lights``."""
-    lights = getattr(spec, which)
-    if not lights:
-        raise ValueError(f"spec {spec.name!r} has no {which}")
-    return np.array([d * e for d, e in (nominal_light(li, spec.camera) for li in lights)])
+# camera_rotation, nominal_light and light_vectors live in pbrbench.scene.geometry (the render
+# command's JSON uses them too) and are re-exported here for the tasks.
 
 
 def as_param(a) -> tuple:

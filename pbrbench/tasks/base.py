@@ -97,6 +97,22 @@ class JobResult:
     failures: dict[str, str] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class Prediction:
+    """One output file an external program writes per job (``pbrbench export`` / ``evaluate``).
+
+    ``name`` is the file stem (``<name>.exr`` or ``<name>.npy``; ``.png`` also for masks,
+    ``.txt`` for a number); ``shape`` a template: ``"H,W"``, ``"H,W,3"`` (H, W of the job's
+    image), ``"image"`` (the shape of the input ``image``), ``"levels,C"`` or ``"K"`` (free
+    sizes) or ``"scalar"``; ``kind`` ``"float"`` or ``"mask"`` (non-zero = True)."""
+
+    name: str
+    shape: str
+    required: bool = True
+    meaning: str = ""
+    kind: str = "float"
+
+
 class Task:
     """Base class; subclasses set the class attributes and implement the three methods."""
 
@@ -109,6 +125,7 @@ class Task:
 
     reference_condition: str = "local"   # the headline's first column; effects are costs against it
     notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
+    cost_notes: dict = {}                # algorithm -> why it takes the time it takes (shown in the report)
 
     def seed_dependent(self, job: Job) -> bool:
         """Whether the job's inputs depend on the seed (then its standard error includes a second
@@ -129,3 +146,32 @@ class Task:
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         """Run ``algorithms`` on job ``job`` with ground truths ``gts`` (scene name -> GroundTruth)."""
         raise NotImplementedError
+
+    # ------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    # ``pbrbench export`` records the arguments run_job passes an algorithm of the main calling
+    # convention and writes them to files; ``pbrbench evaluate`` scores an external program's
+    # files through run_job with an algorithm that returns them, so both see the same inputs.
+    input_names: tuple[str, ...] = ()       # names of the positional arguments of the main convention
+    predictions: tuple[Prediction, ...] = ()  # the files a prediction of one job provides
+
+    def export_jobs(self, quality) -> list[Job]:
+        """The jobs ``pbrbench export`` writes: the scored jobs (plot jobs are left out)."""
+        return [j for j in self.jobs(quality) if j.param("plot") is None]
+
+    def frame_shape(self, inputs: dict) -> tuple[int, int]:
+        """(H, W) of a job's images, from its exported ``inputs`` (default: the mask's shape)."""
+        m = inputs.get("mask")
+        if m is not None and np.ndim(m) == 2:
+            return tuple(np.shape(m))
+        a = np.asarray(inputs[self.input_names[0]])
+        return tuple(a.shape[:2])
+
+    def prediction_output(self, files: dict, inputs: dict):
+        """What the algorithm would have returned, from the prediction ``files`` (name -> array)
+        of one job and its ``inputs``: by default the dict itself."""
+        return dict(files)
+
+    def score_outputs(self, job: Job, gts: dict, files: dict, *, algorithm, seed: int = 0, quality=None):
+        """Score predictions that do not go through the calling convention (e.g. a radiance map
+        where the algorithm returns a response curve), or None to score them through run_job."""
+        return None

@@ -39,7 +39,7 @@ from pbrbench.checks import method_options
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
@@ -120,6 +120,48 @@ class HDRTask(Task):
                 Algorithm("floor:true_response", self.name, true_response, kind="floor")]
         return out
 
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("images", "exposure_times")
+    predictions = (
+        Prediction("response", "levels,C", False, "inverse response f^-1(z) per pixel level z (rows) and channel "
+                   "(columns), any scale (divided by its last row); merged by the task like a built-in's"),
+        Prediction("exposure_times", "K", False, "re-estimated exposure times for the merge (with response)"),
+        Prediction("radiance", "H,W,3", False, "the merged linear radiance (scored without response_rmse); "
+                   "give response or radiance"),
+    )
+
+    def frame_shape(self, inputs: dict) -> tuple[int, int]:
+        return tuple(np.shape(inputs["images"])[1:3])
+
+    def prediction_output(self, files: dict, inputs: dict):
+        from pbrbench.infer.hdr import CameraResponse
+
+        if "response" not in files:
+            raise ValueError("prediction: write response (levels x channels) or radiance (H, W, 3)")
+        inv = np.asarray(files["response"], float)
+        inv = inv[:, None] if inv.ndim == 1 else inv
+        times = files.get("exposure_times")
+        return CameraResponse(inv / inv[-1:], inv.shape[0], "external",
+                              None if times is None else np.asarray(times, float).ravel())
+
+    def score_outputs(self, job: Job, gts: dict, files: dict, *, algorithm, seed: int = 0, quality=None):
+        if "radiance" not in files or "response" in files:
+            return None
+        gt = gts[job.scene]
+        rad, mask, _, domain, coverage = self._bracket(job, gt, seed)
+        book = C.ScoreBook(job, C.scene_hash(gt), [algorithm])
+        res = JobResult(job)
+        try:
+            est = C.check_array(files["radiance"], "radiance", rad.shape, where=mask)
+            sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+        except ValueError as e:
+            book.add(algorithm.name, {"failed": 1.0}, 0.0)
+            res.failures[algorithm.name] = C.one_line(e)
+        else:
+            book.add(algorithm.name, dict(sc, bracket_coverage=coverage), 0.0)
+        res.scores = book.scores
+        return res
+
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, ()):
@@ -127,11 +169,10 @@ class HDRTask(Task):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
-    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
-        from pbrbench.infer.hdr import merge_hdr
-
-        algorithms = [a for a in algorithms if a.applies(job.condition)]
-        gt = gts[job.scene]
+    @staticmethod
+    def _bracket(job: Job, gt, seed: int):
+        """(radiance, its positive pixels, the simulated bracket, the pixels it measures (in every
+        channel some exposure neither black nor saturated), their fraction)."""
         rad = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
         mask = np.all(rad > 0, axis=-1)
         cam, times = camera_setup(job.condition, rad[mask])
@@ -140,13 +181,21 @@ class HDRTask(Task):
         top = br.levels - 1
         measured = np.all(np.any((br.images > 0) & (br.images < top), axis=0), axis=-1)
         domain = mask & measured
-        coverage = float(domain.sum() / max(mask.sum(), 1))
+        return rad, mask, br, domain, float(domain.sum() / max(mask.sum(), 1))
+
+    def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        from pbrbench.infer.hdr import merge_hdr
+
+        algorithms = [a for a in algorithms if a.applies(job.condition)]
+        gt = gts[job.scene]
+        rad, mask, br, domain, coverage = self._bracket(job, gt, seed)
+        times = br.exposure_times
         book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:truth (radiance)"] = C.display(rad)
         k_mid = len(times) // 2
         res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = C.display(br.images[k_mid].astype(float) / (br.levels - 1))
-        res.images["pixels no exposure measures (white)"] = C.display((mask & ~measured).astype(float))
+        res.images["pixels no exposure measures (white)"] = C.display((mask & ~domain).astype(float))
         levels = np.arange(br.levels)
         curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
         shown = set()

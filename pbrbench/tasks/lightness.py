@@ -34,7 +34,7 @@ import numpy as np
 from pbrbench.metrics.lightness import lightness_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded")
 MEAN_LIGHTNESS = 0.5   # the mean of the library's papers, drawn uniformly in [0.1, 0.9]
@@ -107,6 +107,24 @@ class LightnessTask(Task):
                 out.append(Algorithm(f"{n}:{v}", self.name, fn, options={"threshold": THRESHOLD, **opts}))
         out += [Algorithm("baseline:image_is_reflectance", self.name, image_is_reflectance, kind="baseline"),
                 Algorithm("baseline:uniform_reflectance", self.name, uniform_reflectance, kind="baseline")]
+        return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("image",)
+    predictions = (
+        Prediction("reflectance", "image", False, "reflectance (any scale); missing: image / shading"),
+        Prediction("shading", "image", False, "shading (any scale); missing: image / reflectance"),
+    )
+
+    def prediction_output(self, files: dict, inputs: dict):
+        out = dict(files)
+        if not out:
+            raise ValueError("prediction: write reflectance or shading (or both)")
+        image = np.asarray(inputs["image"], float)
+        for want, have in (("reflectance", "shading"), ("shading", "reflectance")):
+            if want not in out:
+                h = np.asarray(out[have], float)
+                out[want] = np.divide(image, h, out=np.zeros_like(image), where=h > 0)
         return out
 
     def jobs(self, quality) -> list[Job]:

@@ -27,6 +27,11 @@ directions are not coplanar (three coplanar sources leave the normal undetermine
 the albedo AOV: radiance images carry ``rho E cos / pi``) and ``height_scores`` (the estimated
 normals integrated by ``lsq`` on the largest connected part of the domain).
 
+For ``sphere_5lights`` under ``local`` the first method's job also draws the chapter's Figs
+1.13-1.16 (the input images, the recovered albedo and normals, a shaded view of the integrated
+height: :func:`chapter_figures`) for the report's chapter gallery.  ``ps_cap`` (a concave spherical
+cap) has a closed-form interreflection bias: :mod:`pbrbench.shading.concave_cap`.
+
 Plot jobs (no scores): ``albedo_sweep`` per swept family (error vs albedo, direct vs global
 renders: the concave cup and groove show the interreflection bias, the convex shapes are the
 control) and ``reflex`` (on ``groove_reflex_*``: the radiosity ``pi L`` across the groove for each
@@ -40,9 +45,10 @@ import numpy as np
 from pbrbench.metrics.normals import albedo_scores, height_scores, normal_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
-FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove")
+FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove",
+            "ps_cap")
 REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
 NOISE = 0.01
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
@@ -76,6 +82,36 @@ def result_arrays(out, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     if fix.any():
         n[fix] /= norm[fix][:, None]
     return n, np.where(valid, a, 0.0), valid
+
+
+GALLERY_FAMILY = "sphere_5lights"   # the chapter's Figs 1.13-1.16 (five images of a sphere and what they give)
+
+
+def chapter_figures(scene: str, method: str, images, normals, albedo, valid, height, pixel_size) -> dict:
+    """Figs 1.13-1.16 for the report's chapter gallery: the input images (one exposure), the
+    recovered albedo (x pi), the recovered normals and a shaded view of the integrated height."""
+    from pbrbench.io import srgb_encode
+
+    k = len(images)
+    cols = 3
+    rows = -(-k // cols)
+    H, W = images.shape[1:3]
+    expo = 1.0 / max(float(np.percentile(images[images > 0], 99.5)) if np.any(images > 0) else 1.0, 1e-30)
+    tiles = np.ones((rows * (H + 2), cols * (W + 2)))
+    for i, im in enumerate(images):
+        r, c = divmod(i, cols)
+        tiles[r * (H + 2):r * (H + 2) + H, c * (W + 2):c * (W + 2) + W] = np.clip(srgb_encode(im * expo), 0, 1)
+    z = np.nan_to_num(np.asarray(height, float), nan=np.nan)
+    gy, gx = np.gradient(np.where(np.isfinite(z), z, 0.0), pixel_size)
+    nrm = np.stack([-gx, gy, np.ones_like(gx)], -1)   # rows run toward -y
+    nrm /= np.linalg.norm(nrm, axis=-1, keepdims=True)
+    light = np.array([-0.5, 0.5, 0.7]) / np.linalg.norm([-0.5, 0.5, 0.7])
+    shaded = np.where(np.isfinite(z), np.clip(nrm @ light, 0.0, 1.0), 0.0)
+    tag = f"{scene}, {method}"
+    return {f"Fig 1.13 photometric stereo ({tag}): the {k} input images": tiles.astype(np.float32),
+            f"Fig 1.14 recovered albedo x pi ({tag})": C.display(np.where(valid, np.clip(np.pi * albedo, 0, 1), 0.0)),
+            f"Fig 1.15 recovered normals ({tag})": C.normals_display(normals, valid),
+            f"Fig 1.16 height integrated from the recovered normals, shaded ({tag})": C.display(shaded)}
 
 
 class PhotometricStereoTask(Task):
@@ -132,6 +168,19 @@ class PhotometricStereoTask(Task):
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
+        return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("images", "lights")
+    predictions = (
+        Prediction("normals", "H,W,3", True, "unit normals in the camera frame (x right, y up, z toward the camera)"),
+        Prediction("albedo", "H,W", False, "albedo as the method recovers it (missing: no albedo scores)"),
+        Prediction("valid", "H,W", False, "pixels with an estimate (missing: where the normal is non-zero)", "mask"),
+    )
+
+    def prediction_output(self, files: dict, inputs: dict):
+        out = dict(files)
+        out.setdefault("albedo", np.zeros(self.frame_shape(inputs)))   # zero albedo: albedo scores skipped
         return out
 
     # --------------------------------------------------------------------------- helpers
@@ -203,7 +252,7 @@ class PhotometricStereoTask(Task):
             n, a, valid = out
             sc, emap = normal_scores(n, n_true, domain, valid)
             sc.update(albedo_scores(np.pi * a, alb_true, domain & valid))
-            hs, _ = height_scores(n, z_true, domain & valid, px)
+            hs, z_est = height_scores(n, z_true, domain & valid, px)
             sc.update(hs)
             book.add(alg.name, sc, seconds)
             res.images[f"normals: {alg.name}"] = C.normals_display(n, valid)
@@ -214,6 +263,8 @@ class PhotometricStereoTask(Task):
                 with np.errstate(invalid="ignore", divide="ignore"):
                     rel = np.where(domain & valid, np.pi * a / np.maximum(alb_true, 1e-6) - 1, np.nan)
                 res.error_maps[f"albedo relative error: {alg.name}"] = C.display_map(rel)
+                if job.scene.split("[")[0] == GALLERY_FAMILY and job.condition == "local":
+                    res.images.update(chapter_figures(job.scene, alg.name, images, n, a, valid, z_est, px))
         res.scores = book.scores
         return res
 

@@ -41,7 +41,7 @@ import numpy as np
 from pbrbench.metrics.sfs import flat_baseline, floor_scores, sfs_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("sfs_sphere", "sfs_vase", "sfs_random")
 NOISE = 0.01
@@ -88,6 +88,13 @@ class SFSTask(Task):
     headline_metric = "normal_mean_deg"
     families = FAMILIES
     short_families = ("sfs_sphere", "sfs_vase")   # the vase stands on a plane: interreflection
+    cost_notes = {
+        "horn1989": "iterative: 100 coarse-to-fine sweeps per pyramid level (5x on the coarsest), each a "
+                    "vectorised pass over the image; the most accurate method with an oblique light",
+        "tsai_shah1994": "Newton steps of the causal system with a damped line search; it stalls after a few "
+                         "steps and the remaining time is spent in rejected trial steps (a stationary point "
+                         "of the linearisation, reported as not converged)",
+    }
 
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.sfs import LIGHT_METHODS, METHODS
@@ -136,6 +143,24 @@ class SFSTask(Task):
                     out.append(Job(self.name, s.name, "global", p))
                     if k in tw_cases:
                         out.append(Job(self.name, tw.name, "area", self._params(tw, tw_cases[k], k)))
+        return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("image", "light")
+    predictions = (
+        Prediction("height", "H,W", True, "height z in world units (any offset), camera frame"),
+        Prediction("normals", "H,W,3", False, "unit normals in the camera frame (missing: from the height "
+                   "by finite differences, pbrbench.infer.integration.gradients_from_height)"),
+        Prediction("converged", "scalar", False, "1 if the method converged, 0 if not (missing: not scored)"),
+    )
+
+    def prediction_output(self, files: dict, inputs: dict):
+        out = dict(files)
+        if "normals" not in out:
+            from pbrbench.infer.integration import gradients_from_height, normals_from_gradients
+
+            p, q = gradients_from_height(out["height"], pixel_size=float(inputs.get("pixel_size", 1.0)))
+            out["normals"] = normals_from_gradients(p, q)
         return out
 
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:

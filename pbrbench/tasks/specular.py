@@ -35,7 +35,7 @@ import numpy as np
 from pbrbench.metrics.specular import specular_mask_from_twin, specular_scores
 from pbrbench.registry import Algorithm
 from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task
 
 FAMILIES = ("specular_sphere", "specular_shapes")
 NOISE = 0.01
@@ -76,6 +76,13 @@ class SpecularTask(Task):
         out += [Algorithm(n + ORACLE, self.name, fn, kind="floor", interface="fill") for n, fn in FILL_METHODS.items()]
         out.append(Algorithm("baseline:no_removal", self.name, no_removal, kind="baseline"))
         return out
+
+    # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
+    input_names = ("image",)
+    predictions = (
+        Prediction("mask", "H,W", True, "the detected specular pixels", "mask"),
+        Prediction("removed", "image", True, "the image with the highlights removed (linear radiance)"),
+    )
 
     def jobs(self, quality) -> list[Job]:
         out = []

@@ -99,3 +99,31 @@ def test_local_cluster_matches_local_executor(tmp_path):
     assert len(o_r.scores) == 8 and len(o_f.scores) == 16
     # figures came back from the workers
     assert len(list((tmp_path / "d2" / "reports" / o_f.run_id / "figures").glob("*/manifest.json"))) == 4
+
+
+@pytest.mark.slow
+def test_a_task_that_kills_its_workers_is_given_up_and_the_others_are_kept():
+    """A task whose worker dies each time it runs is given up after allowed-failures + 1 deaths
+    (0 + 1 here); the executor still yields every other task's result, then names the lost one."""
+    import operator
+    import os
+
+    import dask
+
+    from pbrbench.errors import UserError
+
+    # one task per worker thread (Dask marks every task assigned to a dying worker as suspect)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.scheduler.worker-saturation": 1.0}):
+        ex = DaskExecutor(scheduler=None, workers=1, variant="scalar_rgb")
+    try:
+        got = []
+        # operator.call(f, *args): builtins only, so a restarted worker needs no path to the tests
+        # the crashing task is given up; a task the scheduler had already handed to the same worker
+        # when it died may be given up with it (a race the scheduler decides), never more
+        with pytest.raises(UserError, match=r"^Dask: ([12]) of 4 tasks given up, each was running on 1 worker that died") as e:
+            for r in ex.imap(operator.call, [(abs, -1), (os._exit, 3), (abs, -2), (abs, -3)]):
+                got.append(r)
+    finally:
+        ex.close()
+    lost = int(str(e.value).split()[1])
+    assert len(got) == 4 - lost and set(got) <= {1, 2, 3} and len(set(got)) == len(got)

@@ -54,6 +54,8 @@ def test_run_stores_scores_figures_export_and_report(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
         run = s.get_run(o.run_id)
         assert run["quality"] == "draft" and run["config"]["task_info"]["fake"]["headline_metric"] == "height_rmse"
+        lock = run["config"]["environment"]["lock"]
+        assert len(lock["lock_sha256"]) == 64 and "numpy" in lock["packages"]
         versions = run["config"]["task_info"]["fake"]["algorithm_versions"]
         assert set(versions) == {"good", "baseline:zero"} and all("+" in v for v in versions.values())
         assert {g["scene"] for g in s.ground_truths(o.run_id)} == {"scene_a", "scene_b"}

@@ -104,3 +104,26 @@ def test_render_cli_writes_exr_and_previews(tmp_path, cache_dir, monkeypatch):
     meta = json.loads((d / "gt.json").read_text())
     assert meta["quality"] == "draft" and meta["spp"] == 4
     assert main(["render", "no_such_scene"]) == 1
+
+
+@pytest.mark.render
+@pytest.mark.slow
+def test_scalar_variant_ground_truth_has_the_same_mask_as_llvm(tmp_path):
+    """scalar variants leave the coverage alpha at 0; the white-albedo fallback gives the covered
+    fraction, so the scalar fallback's mask and albedo match the LLVM variant's."""
+    import json
+    import subprocess
+    import sys
+
+    code = ("import sys, json; from pbrbench.render import variant; from pbrbench.settings import Settings; "
+            "variant.configure(Settings.from_env(variant=sys.argv[1])); "
+            "from pbrbench.render.groundtruth import render_ground_truth; from pbrbench.scene.load import resolve; "
+            "(s,) = resolve(['sphere_5lights']); g = render_ground_truth(s, 'draft', variant=sys.argv[1]); "
+            "print(json.dumps([int(g.mask.sum()), float(g['albedo'][g.mask].mean())]))")
+    out = {}
+    for v in ("scalar_rgb", "llvm_ad_rgb"):
+        p = subprocess.run([sys.executable, "-c", code, v], capture_output=True, text=True, timeout=600)
+        assert p.returncode == 0, p.stderr[-2000:]
+        out[v] = json.loads(p.stdout.strip().splitlines()[-1])
+    (ns, albs), (nl, albl) = out["scalar_rgb"], out["llvm_ad_rgb"]
+    assert nl > 1000 and abs(ns - nl) <= 0.01 * nl and abs(albs - albl) < 1e-3

@@ -210,3 +210,22 @@ def test_headless_chromium_every_page_loads_clean(report, tmp_path):
                         f"--screenshot={shot}", o.report.as_uri()], capture_output=True, text=True, timeout=120)
     assert p.returncode == 0 and shot.is_file() and shot.stat().st_size > 10_000, p.stderr[-2000:]
     os.utime(shot)
+
+
+def test_compare_html_page_lists_changes_beyond_the_noise(tmp_path, capsys):
+    from pbrbench.cli.main import main
+
+    a = fake_run(tmp_path, seed=0)
+    b = fake_run(tmp_path, seed=1)
+    out = tmp_path / "cmp" / "index.html"
+    assert main(["compare", a.run_id, b.run_id, "--store", str(tmp_path / "h.sqlite"), "--html", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert f"comparison page: {out.resolve()}" in text
+    p = parse(out)
+    assert p.scripts == 0 and p.links == [{"rel": "stylesheet", "href": "style.css"}]
+    html = out.read_text()
+    # seed-dependent "good" changes; the zero baseline is identical in both runs
+    assert "baseline:zero" in html and html.count(">same <") >= 4
+    for href in p.anchors:
+        target, _, frag = href.partition("#")
+        assert (out.parent / target).is_file() if target else frag in p.ids, href

@@ -173,3 +173,19 @@ def test_ps_on_a_draft_render():
     assert sc[("woodham1980", "albedo_rel_err")] < 0.02
     assert sc[("baseline:naive_lstsq_all_lights", "normal_mean_deg")] > sc[("woodham1980", "normal_mean_deg")]
 
+
+
+def test_the_sphere_job_draws_the_chapter_figures_1_13_to_1_16():
+    from pbrbench.tasks.photometric_stereo import TASK
+    from tests.fakes import ps_gt, ps_job, run_task
+
+    job = ps_job("local", scene="sphere_5lights")
+    res = run_task(TASK, job, {"sphere_5lights": ps_gt()[0]})
+    figs = {k.split(" ")[1]: v for k, v in res.images.items() if k.startswith("Fig 1.1")}
+    assert set(figs) == {"1.13", "1.14", "1.15", "1.16"}
+    assert all(0 <= np.nanmin(v) and np.nanmax(v) <= 1 for v in figs.values())
+    shaded = figs["1.16"]
+    h, w = shaded.shape
+    assert shaded[h // 3, w // 3] > shaded[2 * h // 3, 2 * w // 3]  # the sphere lit from the upper left
+    other = run_task(TASK, ps_job("local", scene="ps_bumps[albedo=0.5]"), {"ps_bumps[albedo=0.5]": ps_gt()[0]})
+    assert not any(k.startswith("Fig") for k in other.images)  # only the chapter's sphere

@@ -13,11 +13,13 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import isotonic_regression
 
+from pbrbench.checks import as_array, as_float_array, check_int, check_seed
 from pbrbench.infer.hdr.response import CameraResponse
 
 __all__ = [
     "CALIBRATION_WEIGHTINGS",
     "as_stack",
+    "check_informative",
     "check_noise_model",
     "check_response",
     "check_times",
@@ -40,7 +42,7 @@ def as_stack(images, bit_depth: int | None = None) -> tuple[np.ndarray, int]:
         arr = images
     else:
         try:
-            items = [np.asarray(im) for im in images]
+            items = [as_array(im, "images") for im in images]
         except TypeError as exc:
             raise ValueError("images: pass an array (K, H, W[, C]) or a sequence of (H, W[, C]) arrays") from exc
         if len(items) == 0:
@@ -70,9 +72,11 @@ def as_stack(images, bit_depth: int | None = None) -> tuple[np.ndarray, int]:
             raise ValueError(f"images: levels must lie in [0, 65535] (at most 16 bits), got [{lo}, {hi}]")
         arr = arr.astype(np.uint16)
     if bit_depth is not None:
-        if int(bit_depth) != bit_depth or not 1 <= bit_depth <= 16:
-            raise ValueError(f"bit_depth={bit_depth!r}: must be an integer in 1..16, or None to infer it")
-        levels = 1 << int(bit_depth)
+        try:
+            bit_depth = check_int(bit_depth, "bit_depth", 1, 16)
+        except ValueError:
+            raise ValueError(f"bit_depth={bit_depth!r}: must be an integer in 1..16, or None to infer it") from None
+        levels = 1 << bit_depth
         if int(arr.max()) >= levels:
             raise ValueError(f"images: level {int(arr.max())} exceeds bit_depth={bit_depth}; pass the right bit_depth")
     elif arr.dtype == np.uint8:
@@ -84,10 +88,10 @@ def as_stack(images, bit_depth: int | None = None) -> tuple[np.ndarray, int]:
 
 def check_times(exposure_times, K: int) -> np.ndarray:
     """``exposure_times`` as a (K,) float array, finite, > 0 and strictly increasing."""
-    try:
-        t = np.asarray(exposure_times, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ValueError("exposure_times: pass a 1-D sequence of numbers (seconds)") from exc
+    t = as_array(exposure_times, "exposure_times")
+    if t.ndim != 1:
+        raise ValueError(f"exposure_times: expected a 1-D sequence, got shape {t.shape}")
+    t = as_float_array(t, "exposure_times", ndim=(1,))
     if t.ndim != 1:
         raise ValueError(f"exposure_times: expected a 1-D sequence, got shape {t.shape}")
     if t.size != K:
@@ -124,12 +128,29 @@ def level_weights(name: str, levels: int) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------ sampling
+def check_informative(Z: np.ndarray, levels: int) -> None:
+    """Refuse a bracket that says nothing about the response: in some channel no pixel has two
+    different unclipped levels in two exposures (all exposures alike, or all clipped)."""
+    top = levels - 1
+    for c in range(Z.shape[3]):
+        z = Z[..., c].reshape(Z.shape[0], -1)
+        ok = (z > 0) & (z < top)
+        lo = np.where(ok, z, top + 1).min(axis=0)
+        hi = np.where(ok, z, -1).max(axis=0)
+        if not (hi > lo).any():
+            raise ValueError(
+                f"images: channel {c} carries no information about the response: no pixel changes level between "
+                "exposures (the exposures are alike, constant or clipped); use a bracket of different exposure "
+                "times over a scene with varied brightness")
+
+
 def sample_pixels(Z: np.ndarray, levels: int, samples: int, seed, per_level: int = 2) -> list[np.ndarray]:
     """Flat pixel indices per channel: ``samples`` random pixels, plus pixels that cover levels.
 
     Every level that occurs in any exposure of a channel is represented by at least
     ``min(per_level, its count)`` sampled pixels.  Deterministic given ``seed``.
     """
+    check_seed(seed)
     K, H, W, C = Z.shape
     P = H * W
     rng = np.random.default_rng(seed)

@@ -13,6 +13,7 @@ from pbrbench.checks import check_int, check_method, check_number
 from pbrbench.infer.hdr._common import (
     CALIBRATION_WEIGHTINGS,
     as_stack,
+    check_informative,
     check_times,
     finalise,
     level_weights,
@@ -94,7 +95,8 @@ def calibrate_debevec1997(images, exposure_times, *, smoothness: float = 1e-7, s
     """
     Z, levels = as_stack(images, bit_depth)
     t = check_times(exposure_times, Z.shape[0])
-    lam = check_number(smoothness, "smoothness", lo=0.0)
+    check_informative(Z, levels)
+    lam = check_number(smoothness, "smoothness", lo=0.0, hi=1e6)
     n_samp = check_int(samples, "samples", 1)
     check_method(weighting, CALIBRATION_WEIGHTINGS, "weighting")
     K, H, W, C = Z.shape

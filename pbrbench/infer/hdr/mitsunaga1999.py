@@ -8,8 +8,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.checks import check_int, check_positive
-from pbrbench.infer.hdr._common import as_stack, check_times, finalise, sample_pixels
+from pbrbench.checks import check_int, check_tolerance
+from pbrbench.infer.hdr._common import (
+    as_stack,
+    check_informative,
+    check_times,
+    finalise,
+    sample_pixels,
+)
 from pbrbench.infer.hdr.response import CameraResponse
 
 __all__ = ["calibrate_mitsunaga1999"]
@@ -134,11 +140,12 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     """
     Z, levels = as_stack(images, bit_depth)
     t = check_times(exposure_times, Z.shape[0])
+    check_informative(Z, levels)
     if degree is not None:
-        degree = check_int(degree, "degree", 1)
+        degree = check_int(degree, "degree", 1, 20)
     max_degree = check_int(max_degree, "max_degree", 1, 20)
     max_iter = check_int(max_iter, "max_iter", 1)
-    tol = check_positive(tol, "tol")
+    tol = check_tolerance(tol)
     n_samp = check_int(samples, "samples", 1)
     K, H, W, C = Z.shape
     top = levels - 1

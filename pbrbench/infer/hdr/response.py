@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pbrbench.checks import as_float_array, check_finite, check_int
+
 __all__ = ["CameraResponse"]
 
 
@@ -36,6 +38,40 @@ class CameraResponse:
     method: str
     exposure_times: np.ndarray | None = None
     coefficients: np.ndarray | None = None
+
+    def __post_init__(self):
+        """Validate on construction, so every response a merge receives is usable: ``inverse``
+        real, finite, > 0, (levels, C), non-decreasing along the levels and not constant."""
+        levels = check_int(self.levels, "CameraResponse.levels", 2, 1 << 16)
+        inv = as_float_array(self.inverse, "CameraResponse.inverse", ndim=(2,))
+        if inv.shape[0] != levels or inv.shape[1] < 1:
+            raise ValueError(f"CameraResponse.inverse: expected shape (levels, C) = ({levels}, C), got {inv.shape}; "
+                             "tabulate f^-1 at every pixel level")
+        check_finite(inv, "CameraResponse.inverse")
+        if (inv <= 0).any():
+            raise ValueError("CameraResponse.inverse: values must be > 0 (relative exposures); got "
+                             f"min {inv.min():.3g}")
+        if (np.diff(inv, axis=0) < 0).any():
+            c = int(np.flatnonzero((np.diff(inv, axis=0) < 0).any(axis=0))[0])
+            raise ValueError(f"CameraResponse.inverse: channel {c} decreases; an inverse response must be monotone "
+                             "non-decreasing in the pixel level")
+        if (inv[-1] <= inv[0]).any():
+            raise ValueError("CameraResponse.inverse: constant in some channel; an inverse response must increase "
+                             "from the lowest to the highest level")
+        if not isinstance(self.method, str):
+            raise ValueError(f"CameraResponse.method: must be a string label, got {self.method!r}")
+        object.__setattr__(self, "inverse", inv)
+        object.__setattr__(self, "levels", levels)
+        if self.exposure_times is not None:
+            t = as_float_array(self.exposure_times, "CameraResponse.exposure_times", ndim=(1,))
+            check_finite(t, "CameraResponse.exposure_times")
+            if (t <= 0).any():
+                raise ValueError("CameraResponse.exposure_times: must be > 0 (seconds)")
+            object.__setattr__(self, "exposure_times", t)
+        if self.coefficients is not None:
+            co = as_float_array(self.coefficients, "CameraResponse.coefficients", ndim=(2,))
+            check_finite(co, "CameraResponse.coefficients")
+            object.__setattr__(self, "coefficients", co)
 
     @property
     def log_inverse(self) -> np.ndarray:

@@ -9,8 +9,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.checks import check_int, check_positive
-from pbrbench.infer.hdr._common import as_stack, check_times, finalise, level_weights, sample_pixels
+from pbrbench.checks import check_int, check_tolerance
+from pbrbench.infer.hdr._common import (
+    as_stack,
+    check_informative,
+    check_times,
+    finalise,
+    level_weights,
+    sample_pixels,
+)
 from pbrbench.infer.hdr.debevec1997 import calibrate_debevec1997
 from pbrbench.infer.hdr.response import CameraResponse
 
@@ -60,8 +67,9 @@ def calibrate_robertson2003(images, exposure_times, *, max_iter: int = 30, tol: 
     """
     Z, levels = as_stack(images, bit_depth)
     t = check_times(exposure_times, Z.shape[0])
+    check_informative(Z, levels)
     max_iter = check_int(max_iter, "max_iter", 1)
-    tol = check_positive(tol, "tol")
+    tol = check_tolerance(tol)
     n_samp = check_int(samples, "samples", 1)
     K, H, W, C = Z.shape
     wl = level_weights("gaussian", levels)

@@ -33,7 +33,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
+from pbrbench.checks import (
+    as_float_array,
+    check_finite,
+    check_mask,
+    check_number,
+    check_pixel_size,
+)
 
 __all__ = ["normals_to_gradients", "normals_from_gradients", "gradients_from_height", "integrability_residual"]
 
@@ -81,7 +87,7 @@ def normals_to_gradients(normals, mask=None, *, min_nz: float = 1e-3):
     else:
         m = check_mask(mask, shape)
         check_finite(n, "normals", where=m)
-    min_nz = check_positive(min_nz, "min_nz")
+    min_nz = check_number(min_nz, "min_nz", lo=0.0, lo_open=True, hi=1.0, hi_open=True)
     nn = np.where(m[..., None], n, 0.0)
     norm = np.linalg.norm(nn, axis=-1)
     nz = np.divide(nn[..., 2], norm, out=np.zeros(shape), where=norm > 0)
@@ -166,7 +172,7 @@ def integrability_residual(normals=None, mask=None, *, gradients=None, pixel_siz
     Algorithm 1.2 (photometric stereo, integrability check).
     """
     p, q, m = _gradients_from_input(normals, gradients, mask)
-    h = check_positive(pixel_size, "pixel_size")
+    h = check_pixel_size(pixel_size)
     dp_dy = -_masked_derivative(p, m, axis=0) / h
     dq_dx = _masked_derivative(q, m, axis=1) / h
     return np.where(m, dp_dy - dq_dx, 0.0)
@@ -177,7 +183,7 @@ def _prepare(normals, gradients, mask, pixel_size):
     p, q, m = _gradients_from_input(normals, gradients, mask)
     if not m.any():
         raise ValueError("mask: no pixel has a usable normal (N_z > 1e-3); check the normals' frame (z toward the camera)")
-    h = check_positive(pixel_size, "pixel_size")
+    h = check_pixel_size(pixel_size)
     return p, q, m, h
 
 
@@ -259,7 +265,7 @@ def gradients_from_height(z, mask=None, *, pixel_size: float = 1.0):
     z = as_float_array(z, "z", ndim=(2,))
     m = check_mask(mask, z.shape)
     check_finite(z, "z", where=m)
-    h = check_positive(pixel_size, "pixel_size")
+    h = check_pixel_size(pixel_size)
     if h != 1.0:
         z = z / h
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pbrbench.checks import check_number
+
 __all__ = ["ANCHORS", "anchor_reflectance", "check_percentile", "check_threshold"]
 
 ANCHORS = ("brightest", "mean")
@@ -11,18 +13,12 @@ ANCHORS = ("brightest", "mean")
 
 def check_threshold(threshold) -> float:
     """``threshold`` as a finite float >= 0 (log units per pixel)."""
-    t = float(threshold)
-    if not np.isfinite(t) or t < 0:
-        raise ValueError(f"threshold: must be a finite number >= 0 (log units per pixel), got {threshold!r}")
-    return t
+    return check_number(threshold, "threshold", lo=0.0)
 
 
 def check_percentile(p) -> float:
     """``brightest_percentile`` as a float in (0, 100]."""
-    p = float(p)
-    if not (np.isfinite(p) and 0 < p <= 100):
-        raise ValueError(f"brightest_percentile: must be in (0, 100], got {p!r}")
-    return p
+    return check_number(p, "brightest_percentile", lo=0.0, lo_open=True, hi=100.0)
 
 
 def anchor_reflectance(log_refl: np.ndarray, sel: np.ndarray, anchor: str, mean_lightness: float,

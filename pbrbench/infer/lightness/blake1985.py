@@ -36,6 +36,7 @@ from pbrbench.checks import (
     check_finite,
     check_mask,
     check_method,
+    check_number,
     check_positive,
 )
 from pbrbench.infer.lightness._common import (
@@ -193,7 +194,7 @@ def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "bright
     check_method(edge_rule, EDGE_RULES, "edge_rule")
     check_method(edge_illumination, EDGE_ILLUMINATION, "edge_illumination")
     t = check_threshold(threshold)
-    mean_lightness = check_positive(mean_lightness, "mean_lightness")
+    mean_lightness = check_number(mean_lightness, "mean_lightness", lo=0.0, lo_open=True, hi=1.0)
     pct = check_percentile(brightest_percentile)
     grey = img.ndim == 2
     x = img[..., None] if grey else img

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.checks import as_float_array, check_finite, check_method, check_positive
+from pbrbench.checks import as_float_array, check_finite, check_method, check_number
 from pbrbench.infer.lightness._common import (
     ANCHORS,
     anchor_reflectance,
@@ -57,7 +57,7 @@ def lightness_1d_horn1974(profile, *, threshold: float = 0.05, anchor: str = "br
     prof = as_float_array(profile, "profile", ndim=(1, 2))
     check_method(anchor, ANCHORS, "anchor")
     t = check_threshold(threshold)
-    mean_lightness = check_positive(mean_lightness, "mean_lightness")
+    mean_lightness = check_number(mean_lightness, "mean_lightness", lo=0.0, lo_open=True, hi=1.0)
     pct = check_percentile(brightest_percentile)
     if prof.shape[0] < 1:
         raise ValueError("profile: is empty; pass at least one sample")

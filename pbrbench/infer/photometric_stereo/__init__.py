@@ -32,6 +32,8 @@ Methods
   of the outliers (evidence maximisation; close to counting them).
 - ``"wu2010"``: :func:`photometric_stereo_wu2010`, low-rank matrix completion and recovery
   (RPCA by inexact ALM) of the observation matrix, then least squares on the trusted entries.
+- ``"nayar1991"``: :func:`photometric_stereo_nayar1991`, undoes interreflection: local solve,
+  facets, interreflection kernel, corrected images, iterated (images must hold all the light).
 
 Baselines (:data:`BASELINES`, not methods): ``"naive_lstsq_all_lights"``,
 :func:`photometric_stereo_naive_lstsq`, one least-squares solve with every light.
@@ -44,6 +46,8 @@ References
   regression", CVPR 2012.
 - L. Wu, A. Ganesh, B. Shi, Y. Matsushita, Y. Wang and Y. Ma, "Robust photometric stereo via
   low-rank matrix completion and recovery", ACCV 2010.
+- S. K. Nayar, K. Ikeuchi and T. Kanade, "Shape from interreflections", International Journal of
+  Computer Vision 6(3):173-195, 1991.
 """
 
 from __future__ import annotations
@@ -53,6 +57,7 @@ from pbrbench.infer.photometric_stereo._common import PhotometricStereoResult
 from pbrbench.infer.photometric_stereo.baselines import BASELINES, photometric_stereo_naive_lstsq
 from pbrbench.infer.photometric_stereo.ikehata2012 import photometric_stereo_ikehata2012_l1
 from pbrbench.infer.photometric_stereo.ikehata2012_sbl import photometric_stereo_ikehata2012_sbl
+from pbrbench.infer.photometric_stereo.nayar1991 import photometric_stereo_nayar1991
 from pbrbench.infer.photometric_stereo.woodham1980 import photometric_stereo_woodham1980
 from pbrbench.infer.photometric_stereo.wu2010 import photometric_stereo_wu2010
 
@@ -64,6 +69,7 @@ __all__ = [
     "photometric_stereo_ikehata2012_l1",
     "photometric_stereo_ikehata2012_sbl",
     "photometric_stereo_naive_lstsq",
+    "photometric_stereo_nayar1991",
     "photometric_stereo_woodham1980",
     "photometric_stereo_wu2010",
 ]
@@ -73,6 +79,7 @@ METHODS = {
     "ikehata2012_l1": photometric_stereo_ikehata2012_l1,
     "ikehata2012_sbl": photometric_stereo_ikehata2012_sbl,
     "wu2010": photometric_stereo_wu2010,
+    "nayar1991": photometric_stereo_nayar1991,
 }
 
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbrbench.checks import as_float_array, check_finite, check_mask
+from pbrbench.checks import as_float_array, check_finite, check_int, check_mask, check_number
 
 __all__ = [
     "PhotometricStereoResult",
@@ -180,13 +180,14 @@ def prepare(images, lights, mask, intensities, shadow_threshold, saturation, min
     s = check_lights(lights, k)
     m = check_mask(mask, (h, w))
     e = check_intensities(intensities, k, nc)
-    thr = float(shadow_threshold)
-    if not (np.isfinite(thr) and 0.0 <= thr < 1.0):
-        raise ValueError(f"shadow_threshold: must be in [0, 1), got {shadow_threshold!r}")
-    if saturation is not None and not np.isfinite(float(saturation)):
-        raise ValueError(f"saturation: must be a finite number or None, got {saturation!r}")
-    if int(min_lights) < 3:
+    thr = check_number(shadow_threshold, "shadow_threshold", lo=0.0, hi=1.0, hi_open=True)
+    if saturation is not None:
+        check_number(saturation, "saturation", lo=0.0, lo_open=True)
+    if isinstance(min_lights, bool) or check_int(min_lights, "min_lights", 1) < 3:
         raise ValueError(f"min_lights: must be >= 3 (three unknowns per pixel), got {min_lights!r}")
+    if int(min_lights) > k:
+        raise ValueError(f"min_lights: {min_lights!r} is more than the {k} images; no pixel could be solved: "
+                         f"pass min_lights between 3 and {k}")
     flat_m = m.ravel()
     full = bool(flat_m.all())
     return Problem(img=img, colour=colour, k=k, h=h, w=w, nc=nc, s=s, s7=outer6(s), m=m, full=full,

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from pbrbench.checks import check_int
 from pbrbench.infer.photometric_stereo._common import (
     PhotometricStereoResult,
     accumulate,
@@ -67,8 +68,7 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     regression", CVPR 2012.
     """
     p = prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights)
-    if int(max_iter) < 1:
-        raise ValueError(f"max_iter: must be >= 1, got {max_iter!r}")
+    max_iter = check_int(max_iter, "max_iter", 1)
     s, s7 = p.s, p.s7
     amat, bmat, bsum, q, jsum, used = accumulate(p, keep=True)
     check_sums(p, bsum, q)

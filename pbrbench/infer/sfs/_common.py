@@ -23,7 +23,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
+from pbrbench.checks import (
+    as_float_array,
+    check_finite,
+    check_mask,
+    check_pixel_size,
+    check_positive,
+)
 from pbrbench.infer.integration import gradients_from_height, integrate_lsq, normals_from_gradients
 
 __all__ = ["SFSResult", "LightEstimate", "integrate_gradients", "occluding_boundary"]
@@ -103,7 +109,7 @@ def integrate_gradients(p, q, *, mask=None, pixel_size: float = 1.0) -> np.ndarr
     p = np.asarray(p, float)
     q = np.asarray(q, float)
     m = check_mask(mask, p.shape)
-    h = check_positive(pixel_size, "pixel_size")
+    h = check_pixel_size(pixel_size)
     p0 = np.where(m, p, 0.0)
     q0 = np.where(m, q, 0.0)
     z = integrate_lsq(gradients=(p0, q0), mask=m, pixel_size=h)
@@ -161,7 +167,7 @@ def _prepare(image, light, albedo, mask, pixel_size):
     if s[2] <= 0:
         raise ValueError(f"light: z component {s[2]:.3g} <= 0 (light behind the surface); the "
                          "camera looks along -z, so pass a light with z > 0")
-    h = check_positive(pixel_size, "pixel_size")
+    h = check_pixel_size(pixel_size)
     if albedo is None:
         rho = float(img[m].max())
         if rho <= 0:

@@ -29,7 +29,14 @@ import warnings
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import check_int, check_mask, check_method, check_number, check_positive
+from pbrbench.checks import (
+    check_int,
+    check_mask,
+    check_method,
+    check_number,
+    check_positive,
+    check_tolerance,
+)
 from pbrbench.infer.sfs._common import (
     SFSResult,
     _finish,
@@ -332,11 +339,14 @@ def shape_from_shading_horn1989(image, light, *, albedo=None, mask=None, pixel_s
     bnd = _boundary_pixels(E, s, m, boundary, theta_max)
     lam = check_positive(smoothness, "smoothness")
     lam_min = check_positive(smoothness_min, "smoothness_min")
+    if lam_min > lam:
+        raise ValueError(f"smoothness_min: {smoothness_min!r} exceeds smoothness={smoothness!r}; the schedule lowers "
+                         "the smoothness from smoothness to smoothness_min: pass smoothness_min <= smoothness")
     mu = check_positive(integrability, "integrability")
     n_stages = check_int(n_stages, "n_stages")
     levels = check_int(levels, "levels")
     mi = check_int(max_iter, "max_iter")
-    tl = check_positive(tol, "tol")
+    tl = check_tolerance(tol)
     t0 = time.perf_counter()
     p, q, _, converged, n_iter, delta, total = _horn_pyramid(
         E, s, m, levels=levels, coarse_iter=5 * mi, max_iter=mi, tol=tl, lam=lam,

@@ -29,7 +29,7 @@ import warnings
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import check_method, check_positive
+from pbrbench.checks import check_method, check_number
 from pbrbench.infer.integration import gradients_from_height
 from pbrbench.infer.sfs._common import (
     SFSResult,
@@ -287,8 +287,8 @@ def shape_from_shading_kimmel2001(image, light, *, albedo=None, mask=None, pixel
     """
     E, s, m, rho, h = _prepare(image, light, albedo, mask, pixel_size)
     check_method(seeds, ("auto", "singular", "boundary"), "seeds")
-    singular_delta = check_positive(singular_delta, "singular_delta")
-    e_min = check_positive(e_min, "e_min")
+    singular_delta = check_number(singular_delta, "singular_delta", lo=0.0, lo_open=True, hi=1.0, hi_open=True)
+    e_min = check_number(e_min, "e_min", lo=0.0, lo_open=True, hi=1.0, hi_open=True)
     frontal = _is_frontal(s)
     t0 = time.perf_counter()
     info: dict = {}

@@ -26,7 +26,7 @@ import warnings
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import check_int, check_positive
+from pbrbench.checks import check_int, check_positive, check_tolerance
 from pbrbench.infer.sfs._common import SFSResult, _finish, _is_frontal, _prepare, _reflectance
 
 __all__ = ["shape_from_shading_tsai_shah1994"]
@@ -187,7 +187,7 @@ def shape_from_shading_tsai_shah1994(image, light, *, albedo=None, mask=None, pi
     E, s, m, rho, h = _prepare(image, light, albedo, mask, pixel_size)
     damping = check_positive(damping, "damping")
     mi = check_int(max_iter, "max_iter")
-    tl = check_positive(tol, "tol")
+    tl = check_tolerance(tol)
     t0 = time.perf_counter()
     init = None
     if _is_frontal(s):

@@ -20,7 +20,14 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import as_float_array, check_finite, check_mask, check_positive
+from pbrbench.checks import (
+    as_float_array,
+    check_finite,
+    check_int,
+    check_mask,
+    check_number,
+    check_positive,
+)
 
 __all__ = ["detect_specularities"]
 
@@ -91,21 +98,15 @@ def detect_specularities(image, *, radius: int | None = None, ratio: float = 1.5
     img = as_float_array(image, "image", ndim=(2, 3))
     m = check_mask(mask, img.shape[:2])
     check_finite(img, "image")
-    r = max(3, min(img.shape[:2]) // 10) if radius is None else int(radius)
-    if r < 1:
-        raise ValueError(f"radius: must be an integer >= 1, got {radius!r}")
+    r = max(3, min(img.shape[:2]) // 10) if radius is None else check_int(radius, "radius", 1, max(img.shape[:2]))
     ratio = check_positive(ratio, "ratio")
     low_ratio = check_positive(low_ratio, "low_ratio")
     if not (1.0 < low_ratio <= ratio):
         raise ValueError(f"low_ratio/ratio: need 1 < low_ratio <= ratio, got low_ratio={low_ratio}, "
                          f"ratio={ratio}")
-    min_excess = float(min_excess)
-    if not (np.isfinite(min_excess) and min_excess >= 0):
-        raise ValueError(f"min_excess: must be a finite number >= 0, got {min_excess!r}")
+    min_excess = check_number(min_excess, "min_excess", lo=0.0)
     size = 2 * r + 1
-    max_area = size * size if max_area is None else int(max_area)
-    if max_area < 1:
-        raise ValueError(f"max_area: must be a positive integer, got {max_area!r}")
+    max_area = size * size if max_area is None else check_int(max_area, "max_area", 1)
 
     b = _brightness(img)
     bg = _octagon_opening(b, r, m & (b > 0))

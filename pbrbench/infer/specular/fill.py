@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from scipy import ndimage
 from scipy.sparse.linalg import splu
 
-from pbrbench.checks import as_float_array, check_finite
+from pbrbench.checks import as_array, as_float_array, check_finite, check_int
 from pbrbench.infer.specular.detect import detect_specularities
 
 __all__ = ["remove_specularities_biharmonic", "remove_specularities_harmonic"]
@@ -65,13 +65,11 @@ def _hole(image, mask, dilate, detect_options):
     ``(img, None)`` when there is nothing to fill."""
     img = as_float_array(image, "image", ndim=(2, 3))
     check_finite(img, "image")
-    d = int(dilate)
-    if d < 0:
-        raise ValueError(f"dilate: must be an integer >= 0, got {dilate!r}")
+    d = check_int(dilate, "dilate", 0, max(img.shape[:2]))
     if mask is None:
         hole = detect_specularities(img, **(detect_options or {}))
     else:
-        hole = np.asarray(mask)
+        hole = as_array(mask, "mask")
         if hole.shape != img.shape[:2]:
             raise ValueError(f"mask: shape {hole.shape} does not match the image shape {img.shape[:2]}; "
                              "pass an (H, W) boolean mask")
@@ -84,7 +82,8 @@ def _hole(image, mask, dilate, detect_options):
     if not hole.any():
         return img, None
     if hole.all():
-        raise ValueError("mask: covers the whole image, nothing to interpolate from; pass a smaller mask")
+        raise ValueError(f"mask: covers the whole image{f' once dilated by dilate={d}' if d else ''}, nothing to "
+                         "interpolate from; pass a smaller mask (or a smaller dilate)")
     return img, hole
 
 

@@ -22,7 +22,7 @@ def glossy():
 
 
 def test_table():
-    assert set(METHODS) == {"woodham1980", "ikehata2012_l1", "ikehata2012_sbl", "wu2010"}
+    assert set(METHODS) == {"woodham1980", "ikehata2012_l1", "ikehata2012_sbl", "wu2010", "nayar1991"}
     assert METHODS["woodham1980"] is photometric_stereo_woodham1980
 
 

@@ -81,7 +81,8 @@ def test_merge_value_errors():
     with pytest.raises(ValueError, match="levels"):
         merge_debevec1997(Z.astype(np.uint16) * 4, t, resp)
     with pytest.raises(ValueError, match="channels"):
-        merge_debevec1997(np.repeat(Z, 3, axis=3), t, CameraResponse(np.ones((256, 2)), 256, "x"))
+        two = np.tile(np.linspace(1e-3, 1.0, 256)[:, None], (1, 2))  # a valid 2-channel response
+        merge_debevec1997(np.repeat(Z, 3, axis=3), t, CameraResponse(two, 256, "x"))
     with pytest.raises(ValueError, match="noise_model"):
         merge_debevec1997(Z, t, resp, noise_model=(-1.0, 100.0))
     with pytest.raises(ValueError, match="increasing"):

@@ -1,0 +1,181 @@
+"""The life of a run in the store: who runs it, whether it is alive, and how it ends.
+
+A run records its process when it starts (host, pid, and the process's start time, so a reused
+pid is not mistaken for it) and refreshes a heartbeat every :data:`HEARTBEAT_S` seconds from a
+background thread.  A run whose status is ``running`` reads as ``interrupted``
+(:func:`effective_status`) when
+
+* it ran on this host and its process is gone (or the pid now belongs to another process), or
+* it ran on another host and its heartbeat is older than :data:`STALE_S`, or
+* it was written by a pbrbench that recorded no process and started more than :data:`STALE_S` ago.
+
+:func:`preflight` checks, before a run is created, that its output directory can be written (so
+a read-only or full ``--out`` gives one line and leaves no junk run); :func:`check_resumable`
+refuses to resume a run that is still alive; :func:`finish` records the final status and never
+lets a failure to record it hide the error that ended the run.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import socket
+import sys
+import threading
+from datetime import UTC, datetime
+from pathlib import Path
+
+from pbrbench.errors import DiskError, UserError, disk_error
+from pbrbench.scratch import pid_alive
+
+HEARTBEAT_S = 30.0
+STALE_S = 15 * 60.0
+
+
+# ----------------------------------------------------------------------------- processes
+def _boot_id() -> str:
+    try:
+        return Path("/proc/sys/kernel/random/boot_id").read_text().strip()
+    except OSError:
+        return ""
+
+
+def process_start(pid: int) -> str | None:
+    """An identifier of the process ``pid``'s start (boot id + start time in clock ticks, from
+    /proc), or None where /proc is not available."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    fields = stat[stat.rfind(")") + 2:].split()
+    try:
+        return f"{_boot_id()}:{fields[19]}"   # field 22 of stat: starttime
+    except IndexError:  # pragma: no cover
+        return None
+
+
+def this_process() -> dict:
+    return {"host": socket.gethostname(), "pid": os.getpid(), "pid_start": process_start(os.getpid())}
+
+
+def _age_s(stamp: str | None, now: datetime | None = None) -> float | None:
+    if not stamp:
+        return None
+    try:
+        t = datetime.fromisoformat(stamp)
+    except ValueError:
+        return None
+    if t.tzinfo is None:
+        t = t.replace(tzinfo=UTC)
+    return ((now or datetime.now(UTC)) - t).total_seconds()
+
+
+def is_alive(run: dict, *, now: datetime | None = None) -> bool | None:
+    """Whether the process of a ``running`` run still exists; None when nothing was recorded."""
+    pid, host = run.get("pid"), run.get("host")
+    if pid is None or not host:
+        return None
+    if host == socket.gethostname():
+        if not pid_alive(int(pid)):
+            return False
+        rec = run.get("pid_start")
+        cur = process_start(int(pid))
+        return not (rec and cur and rec != cur)
+    age = _age_s(run.get("heartbeat"), now)
+    return None if age is None else age < STALE_S
+
+
+def effective_status(run: dict, *, now: datetime | None = None) -> str | None:
+    """The status to show: ``interrupted`` for a ``running`` run that is no longer alive."""
+    st = run.get("status")
+    if st != "running":
+        return st
+    alive = is_alive(run, now=now)
+    if alive is None:  # recorded by an older pbrbench: judge by its age
+        age = _age_s(run.get("heartbeat") or run.get("time"), now)
+        return "interrupted" if age is not None and age > STALE_S else "running"
+    return "running" if alive else "interrupted"
+
+
+# ----------------------------------------------------------------------------- a run's life
+class Heartbeat:
+    """Refreshes a run's heartbeat every ``interval`` seconds on its own connection."""
+
+    def __init__(self, store_path, run_id: str, interval: float = HEARTBEAT_S):
+        self.store_path, self.run_id, self.interval = store_path, run_id, interval
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name=f"pbrbench-heartbeat-{run_id}", daemon=True)
+        self._thread.start()
+
+    def _loop(self):
+        from pbrbench.bench.store import Store
+
+        store = None
+        while not self._stop.wait(self.interval):
+            try:
+                if store is None:
+                    store = Store(self.store_path)
+                store.beat(self.run_id)
+            except Exception:  # noqa: BLE001 - a missed beat must never stop the run
+                pass
+        if store is not None:
+            store.close()
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(timeout=5)
+
+
+def preflight(settings) -> Path:
+    """Create the output directory and check that it can be written, before any run exists."""
+    out = Path(settings.out)
+    probe = out / f".pbrbench-write-test-{os.getpid()}"
+    try:
+        if out.exists() and not out.is_dir():
+            raise NotADirectoryError(20, "Not a directory", str(out))
+        out.mkdir(parents=True, exist_ok=True)
+        probe.write_bytes(b"ok")
+    except OSError as exc:
+        raise disk_error(exc, f"--out {out}", option="--out") from None
+    finally:
+        with contextlib.suppress(OSError):
+            probe.unlink()
+    return out
+
+
+def check_resumable(store, run_id: str) -> dict:
+    """The run to resume; UserError when it is still alive in another process."""
+    run = store.get_run(run_id)
+    if run is None:
+        raise UserError(f"run {run_id!r}: not in {store.path}; `pbrbench history` lists the runs")
+    if run["status"] == "running":
+        age = _age_s(run.get("heartbeat"))
+        beat = f", last heartbeat {age:.0f} s ago" if age is not None else ""
+        raise UserError(f"run {run_id} is still running (pid {run.get('pid')} on {run.get('host')}{beat}); wait for it "
+                        "to finish or stop it before resuming it")
+    return run
+
+
+def start(store, run_id: str, *, interval: float = HEARTBEAT_S) -> Heartbeat | None:
+    """Record this process as the one running ``run_id`` and start its heartbeat."""
+    p = this_process()
+    store.set_process(run_id, host=p["host"], pid=p["pid"], pid_start=p["pid_start"])
+    if store.path is None or interval <= 0:
+        return None
+    return Heartbeat(store.path, run_id, interval)
+
+
+def finish(store, run_id: str, status: str, *, variant: str | None = None, heartbeat: Heartbeat | None = None,
+           log=None) -> bool:
+    """Stop the heartbeat and record the final status; a failure to record it (full or read-only
+    store) is reported in one line and does not replace the error that ended the run: the run then
+    reads as interrupted and can be resumed.  Returns whether the status was recorded."""
+    if heartbeat is not None:
+        heartbeat.stop()
+    try:
+        store.set_status(run_id, status, variant=variant)
+        return True
+    except (DiskError, UserError) as exc:
+        msg = f"could not record status {status!r} of run {run_id}: {exc}"
+        (log or (lambda m: print(f"pbrbench: {m}", file=sys.stderr, flush=True)))(msg)
+        return False

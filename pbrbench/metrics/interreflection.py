@@ -1,0 +1,88 @@
+"""Scores of forward models of radiance (the interreflection task): predicted against rendered radiance.
+
+Over the evaluation domain ``D`` (pixels ``p``, channels ``c``), with the prediction ``P`` and
+the reference ``R`` (the path tracer's global radiance, or its direct light):
+
+.. math::  e_1 = \\frac{\\sum_{p, c} |P - R|}{\\sum_{p, c} R}, \\qquad
+           e_2 = \\frac{\\sqrt{\\mathrm{mean}_{p, c} (P - R)^2}}{\\mathrm{mean}_{p, c} R}, \\qquad
+           b = \\frac{\\sum P}{\\sum R} - 1,
+
+and the luminance-weighted chromaticity error
+``sum_p Y_p |chi(P_p) - chi(R_p)|_1 / sum_p Y_p`` with ``chi = (r, g, b) / (r + g + b)`` and
+``Y`` the reference's channel sum: a model that misses colour bleeding (light reflected by a
+coloured surface onto a white one) has the right brightness but the wrong colour there.
+
+Reference: D. A. Forsyth and A. Zisserman, "Reflections on shading", IEEE PAMI 13(7), 1991 (the
+local model against interreflections); C. M. Goral et al., SIGGRAPH 1984 (the radiosity model).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pbrbench.checks import as_float_array, check_mask
+from pbrbench.metrics.table import table
+
+__all__ = ["METRICS", "radiosity_scores", "chromaticity_error"]
+
+METRICS = table(
+    ("radiosity_rel_error", "lower", "", "sum |predicted - rendered radiance| / sum rendered, over the visible surface",
+     "radiosity_scores"),
+    ("radiosity_rel_rmse", "lower", "", "RMS of predicted - rendered radiance / mean rendered radiance, visible surface",
+     "radiosity_scores"),
+    ("radiosity_abs_bias", "lower", "", "|sum predicted / sum rendered - 1|: the missing (or extra) light overall",
+     "radiosity_scores"),
+    ("chromaticity_error", "lower", "", "luminance-weighted L1 distance of the (r, g, b) / (r + g + b) chromaticities",
+     "chromaticity_error"),
+)
+
+
+def _pair(pred, ref, mask):
+    P = as_float_array(pred, "pred")
+    R = as_float_array(ref, "ref")
+    if P.ndim == 2:
+        P = P[..., None]
+    if R.ndim == 2:
+        R = R[..., None]
+    if P.shape[:2] != R.shape[:2] or P.shape[-1] not in (1, R.shape[-1]):
+        raise ValueError(f"pred: shape {P.shape} does not match the reference's {R.shape}")
+    P = np.broadcast_to(P, R.shape)
+    m = np.ones(R.shape[:2], bool) if mask is None else check_mask(mask, R.shape[:2])
+    return P[m], R[m]
+
+
+def chromaticity_error(pred, ref, mask=None) -> float:
+    """Luminance-weighted L1 distance of the chromaticities (see the module docstring); 0 for
+    one-channel images."""
+    P, R = _pair(pred, ref, mask)
+    if R.shape[-1] < 3:
+        return 0.0
+    sp, sr = P.sum(-1), R.sum(-1)
+    ok = (sr > 0) & (sp > 0)
+    if not ok.any():
+        return float("nan")
+    dchi = np.abs(P[ok] / sp[ok, None] - R[ok] / sr[ok, None]).sum(-1)
+    return float(np.sum(sr[ok] * dchi) / np.sum(sr[ok]))
+
+
+def radiosity_scores(pred, ref, mask=None) -> dict[str, float]:
+    """``radiosity_rel_error``, ``radiosity_rel_rmse``, ``radiosity_abs_bias`` and
+    ``chromaticity_error`` of a predicted radiance image (H, W[, C]) against the reference over
+    ``mask`` (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        On mismatched shapes, an empty domain or a reference without light in it.
+    """
+    P, R = _pair(pred, ref, mask)
+    if R.size == 0:
+        raise ValueError("mask: the evaluation domain is empty; give a mask with some pixels")
+    total = float(R.sum())
+    if not total > 0:
+        raise ValueError("ref: no light in the evaluation domain (the relative errors are undefined)")
+    d = P - R
+    return {"radiosity_rel_error": float(np.abs(d).sum() / total),
+            "radiosity_rel_rmse": float(np.sqrt(np.mean(d * d)) / np.mean(R)),
+            "radiosity_abs_bias": float(abs(P.sum() / total - 1.0)),
+            "chromaticity_error": chromaticity_error(pred, ref, mask)}

@@ -1,0 +1,188 @@
+"""Data files a scene reads (``.npy`` albedo images and height arrays), found and loaded safely.
+
+A scene file names its data files by paths relative to its own directory.  Before any byte of
+array data is read:
+
+* the path is resolved (symbolic links followed) and must lie inside the scene file's directory,
+  or inside a directory of the ``data_dirs`` setting (``PBRBENCH_DATA_DIRS``, paths separated by
+  ``os.pathsep``): a scene file cannot make pbrbench read ``/etc/...`` or ``../../secret.npy``;
+* the ``.npy`` header is parsed on its own: the dtype must be a real number type (never Python
+  objects: nothing is unpickled), and the array it announces must fit :data:`MAX_DATA_BYTES` and
+  the file's actual size, so a file that lies in its header cannot make pbrbench allocate
+  terabytes.
+
+Every error is a :class:`~pbrbench.errors.SceneError` whose one-line message names the scene
+file, the key that points at the data file and the file as written, e.g.
+``x.toml: shapes[0].path: data/h.npy: not a NumPy .npy file (it starts with b'1.0 2.0 '); save the
+array with numpy.save``.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from pbrbench.errors import SceneError
+
+MAX_DATA_BYTES = 256 * 2**20   # largest array a scene data file may hold
+MAX_HEIGHT = 1e6               # largest |height| of a height array (scene units, like positions)
+
+
+def _fmt_bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
+        n /= 1024
+    return f"{n:.2f} PiB"  # pragma: no cover
+
+
+def data_roots(base_dir: str | os.PathLike, extra: tuple | list | None = None) -> list[Path]:
+    """The directories a scene's data files may lie in: its own, and those of ``extra`` (else the
+    ``data_dirs`` setting)."""
+    if extra is None:
+        from pbrbench.settings import Settings
+
+        extra = Settings.from_env().data_dirs or ()
+    roots = [Path(base_dir or ".").resolve()]
+    roots += [Path(d).resolve() for d in extra if str(d)]
+    return roots
+
+
+def resolve_data_path(base_dir: str | os.PathLike, rel: str, *, where: str, extra_roots=None) -> Path:
+    """The real path of the data file ``rel`` of a scene in ``base_dir``; SceneError (message
+    prefixed with ``where``, e.g. ``"x.toml: shapes[0].path"``) when it is outside the allowed
+    directories, missing or not a file."""
+    if not isinstance(rel, str) or not rel.strip():
+        raise SceneError(f"{where}: is empty; give the path of a .npy file relative to the scene file")
+    if "\x00" in rel:
+        raise SceneError(f"{where}: {rel!r} holds a NUL character; give a plain relative path")
+    roots = data_roots(base_dir, extra_roots)
+    p = Path(rel)
+    try:
+        real = (p if p.is_absolute() else roots[0] / p).resolve()
+    except (OSError, RuntimeError) as exc:  # a symlink loop
+        raise SceneError(f"{where}: {rel}: cannot be resolved ({exc}); give a plain relative path") from None
+    if not any(real == r or real.is_relative_to(r) for r in roots):
+        raise SceneError(
+            f"{where}: {rel}: lies outside the scene file's directory {roots[0]}; data files must sit beside "
+            "the scene (copy it there), or allow its directory with PBRBENCH_DATA_DIRS")
+    if not real.exists():
+        raise SceneError(f"{where}: {rel}: does not exist (looked for {real}); fix the path (it is relative to "
+                         "the scene file)")
+    if not real.is_file():
+        raise SceneError(f"{where}: {rel}: is not a file ({real}); give the path of a .npy file")
+    return real
+
+
+def read_npy(path: str | os.PathLike, *, where: str, max_bytes: int | None = None) -> np.ndarray:
+    """A real-valued array from the ``.npy`` file at ``path``, read without unpickling and with
+    its header checked against the file size and ``max_bytes`` before anything is allocated."""
+    limit = MAX_DATA_BYTES if max_bytes is None else max_bytes
+    fmt = np.lib.format
+    try:
+        with open(path, "rb") as f:
+            try:
+                version = fmt.read_magic(f)
+            except ValueError:
+                f.seek(0)
+                head = f.read(8)
+                raise SceneError(f"{where}: not a NumPy .npy file (it starts with {head!r}); save the array with "
+                                 "numpy.save") from None
+            try:
+                if version == (1, 0):
+                    shape, fortran, dtype = fmt.read_array_header_1_0(f)
+                else:
+                    shape, fortran, dtype = fmt.read_array_header_2_0(f)
+            except (ValueError, SyntaxError, TypeError) as exc:
+                raise SceneError(f"{where}: damaged .npy header ({exc}); save the array again with numpy.save") from None
+            if dtype.hasobject:
+                raise SceneError(f"{where}: holds Python objects (dtype object, stored as a pickle); pbrbench never "
+                                 "unpickles data files: save a numeric array, e.g. numpy.save(path, np.asarray(a, float))")
+            if dtype.names is not None or dtype.subdtype is not None:
+                raise SceneError(f"{where}: has the structured dtype {dtype}; save a plain numeric array")
+            if dtype.kind == "c":
+                raise SceneError(f"{where}: holds complex values (dtype {dtype}); save real values "
+                                 "(np.real(a) or np.abs(a))")
+            if dtype.kind not in "biuf":
+                raise SceneError(f"{where}: dtype {dtype} is not a number type; save a float array")
+            count = 1
+            for n in shape:
+                count *= int(n)
+            nbytes = count * dtype.itemsize
+            if nbytes > limit:
+                raise SceneError(f"{where}: its header asks for {_fmt_bytes(nbytes)} (shape {tuple(shape)}, {dtype}), above "
+                                 f"the {_fmt_bytes(limit)} limit for a scene data file; save a smaller array")
+            left = os.fstat(f.fileno()).st_size - f.tell()
+            if left < nbytes:
+                raise SceneError(f"{where}: truncated: the header announces {nbytes} bytes of data (shape {tuple(shape)}, "
+                                 f"{dtype}) but the file holds {left}; save the array again with numpy.save")
+            try:
+                f.seek(0)
+                a = fmt.read_array(f, allow_pickle=False) if count else np.zeros(shape, dtype)
+            except (ValueError, OSError) as exc:
+                raise SceneError(f"{where}: cannot be read ({exc}); save the array again with numpy.save") from None
+    except OSError as exc:
+        raise SceneError(f"{where}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
+    return np.asarray(a)
+
+
+def check_height(a: np.ndarray, *, where: str) -> np.ndarray:
+    """A height array: 2-D, at least 2 x 2, finite and within :data:`MAX_HEIGHT`, as float64."""
+    if a.ndim != 2:
+        raise SceneError(f"{where}: a height array must be 2-D (rows, columns), got shape {a.shape}")
+    if min(a.shape) < 2:
+        raise SceneError(f"{where}: a height array must be at least 2 x 2, got shape {a.shape}")
+    z = a.astype(np.float64)
+    bad = ~np.isfinite(z)
+    if bad.any():
+        raise SceneError(f"{where}: {int(bad.sum())} non-finite height(s) (NaN or inf); replace them "
+                         "(e.g. np.nan_to_num) before saving")
+    if np.abs(z).max() > MAX_HEIGHT:
+        raise SceneError(f"{where}: heights reach {np.abs(z).max():.3g}; they must be finite numbers >= "
+                         f"{-MAX_HEIGHT:g} and <= {MAX_HEIGHT:g} (scene units)")
+    return z
+
+
+def check_texture(a: np.ndarray, *, where: str) -> np.ndarray:
+    """An albedo image: (H, W) or (H, W, 3), finite, in [0, 1], as float32 (H, W, 3)."""
+    if a.ndim == 2:
+        a = np.repeat(a[..., None], 3, axis=2)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise SceneError(f"{where}: an albedo image must be (H, W) or (H, W, 3), got shape {a.shape}")
+    if a.shape[0] < 1 or a.shape[1] < 1:
+        raise SceneError(f"{where}: an albedo image must have at least one pixel, got shape {a.shape}")
+    x = a.astype(np.float64)
+    bad = ~np.isfinite(x)
+    if bad.any():
+        raise SceneError(f"{where}: {int(bad.sum())} non-finite value(s) (NaN or inf); albedos are numbers in [0, 1]")
+    if x.min() < 0 or x.max() > 1:
+        raise SceneError(f"{where}: albedos must lie in [0, 1] (linear, energy conservation), got "
+                         f"[{x.min():.3g}, {x.max():.3g}]")
+    return x.astype(np.float32)
+
+
+def load_data(base_dir: str | os.PathLike, rel: str, kind: str, *, where: str, extra_roots=None) -> np.ndarray:
+    """Resolve, read and check one data file of a scene (``kind``: ``"height"`` or ``"texture"``)."""
+    path = resolve_data_path(base_dir, rel, where=where, extra_roots=extra_roots)
+    at = f"{where}: {rel}"
+    a = read_npy(path, where=at)
+    return check_height(a, where=at) if kind == "height" else check_texture(a, where=at)
+
+
+_CHECKED: dict[tuple, float] = {}
+
+
+def check_data_file(base_dir: str | os.PathLike, rel: str, kind: str, *, where: str) -> float:
+    """:func:`load_data` for validation: returns the largest absolute value; a file already checked
+    (same real path, size and modification time) is not read again (a sweep shares its files)."""
+    path = resolve_data_path(base_dir, rel, where=where)
+    st = path.stat()
+    key = (str(path), st.st_size, st.st_mtime_ns, kind)
+    if key not in _CHECKED:
+        a = load_data(base_dir, rel, kind, where=where)
+        if len(_CHECKED) > 256:
+            _CHECKED.clear()
+        _CHECKED[key] = float(np.abs(a).max()) if a.size else 0.0
+    return _CHECKED[key]

@@ -1,0 +1,566 @@
+"""Measure how the command line treats the corpus: ``python -m tests.corpus.measure scenes [SRC]``.
+
+``SRC`` is the source tree to measure (default: this checkout), so the same corpus can be run
+against an older revision (``git worktree add /tmp/before REV``).  Every scene file of
+``tests/corpus/scenes`` is rendered by ``pbrbench render FILE --quality draft`` in a fresh
+subprocess with its own cache and output directory; the outcome is one of
+
+- ``one_line``: exit 1, one line on stderr, no traceback, the line names the file;
+- ``one_line_expected``: the same, and the line holds every ``# expect:`` substring of the file;
+- ``traceback``: a Python traceback reached the user;
+- ``accepted`` / ``accepted_black``: exit 0 (``_black``: the ground truth's radiance is all zero);
+- ``timeout``: still running after the time limit (a job far too large started without warning);
+- ``other``: anything else (another exit code, several lines).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parents[1]
+
+
+def expectations(path: Path) -> dict:
+    exp, stage, cls = [], "load", ""
+    with open(path, "rb") as f:
+        for raw in f:
+            line = raw.decode("utf-8", "replace").strip()
+            if not line.startswith("#"):
+                break
+            k, _, v = line[1:].partition(":")
+            k, v = k.strip(), v.strip()
+            if k == "expect":
+                exp.append(v)
+            elif k == "stage":
+                stage = v
+            elif k == "class":
+                cls = v
+    return {"expect": exp, "stage": stage, "class": cls}
+
+
+def run_cli(args: list[str], *, src: Path = ROOT, env: dict | None = None, timeout: float = 60, cwd=None):
+    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_")}
+    e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0")
+    e.update(env or {})
+    # cwd outside any checkout: ``python -m`` puts the working directory first on sys.path
+    cwd = cwd or tempfile.gettempdir()
+    try:
+        r = subprocess.run([sys.executable, "-m", "pbrbench", *args], capture_output=True, text=True,
+                           timeout=timeout, env=e, cwd=cwd)
+    except subprocess.TimeoutExpired:
+        return None
+    return r
+
+
+def classify_render(path: Path, *, src: Path = ROOT, timeout: float = 60) -> tuple[str, str]:
+    info = expectations(path)
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "sub" / "out"
+        r = run_cli(["render", str(path), "--quality", "draft", "--cache", str(Path(tmp) / "cache"), "--out", str(out),
+                     "--no-previews"], src=src, timeout=timeout)
+        if r is None:
+            return "timeout", ""
+        err = r.stderr.strip()
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        escaped = [p for p in (Path(tmp) / "sub").iterdir() if p.name != "out"] if (Path(tmp) / "sub").exists() else []
+        if "Traceback" in err:
+            return "traceback", lines[-1] if lines else ""
+        if r.returncode == 0:
+            black = False
+            for meta in out.glob("**/gt.json"):
+                try:
+                    m = json.loads(meta.read_text())
+                    black |= m.get("noise", {}).get("radiance_rel_sd_rms", 1) == 0
+                except ValueError:
+                    pass
+            if escaped:
+                return "accepted_escaped", f"wrote {[p.name for p in escaped]} outside --out"
+            return ("accepted_black" if black else "accepted"), r.stdout.strip()[-200:]
+        if r.returncode == 1 and len(lines) == 1 and str(path) in lines[0]:
+            ok = all(x in lines[0] for x in info["expect"])
+            return ("one_line_expected" if ok else "one_line"), lines[0]
+        return "other", f"rc={r.returncode} " + " // ".join(lines[-3:])
+
+
+def measure_scenes(src: Path = ROOT, verbose: bool = False) -> Counter:
+    c: Counter = Counter()
+    for p in sorted((HERE / "scenes").glob("*.toml")):
+        outcome, msg = classify_render(p, src=src)
+        c[outcome] += 1
+        if verbose:
+            print(f"{p.name:50s} {outcome:18s} {msg[:240]}", flush=True)
+    return c
+
+
+
+
+# ----------------------------------------------------------------------------- disk faults
+TINY = ('name = "tiny"\ndescription = "a lit sphere"\n[camera]\nhalf_width = 1.1\n[render]\nresolution = 16\nspp = 4\n'
+        '[[shapes]]\ntype = "sphere"\n[[lights]]\ntype = "directional"\ndirection = [0.0, 0.0, 1.0]\nirradiance = 3.0\n')
+TINY_HF = TINY.replace('[[shapes]]\ntype = "sphere"\n', '[[shapes]]\ntype = "heightfield"\nsurface = "sphere"\nresolution = 16\n')
+SHARED_CACHE = "/work/ref/dcache/pbrbench"   # read only by these cases (every draft lightness render is there)
+
+
+def _faulty(kind, under, budget=None):
+    # run as a script (not -m), so the fault injector is this checkout's while pbrbench is src's
+    return [sys.executable, str(HERE / "faults.py"), kind, str(under)] + ([str(budget)] if budget is not None else []) + ["--"]
+
+
+def _run(cmd, src, env=None, timeout=300, cwd=None):
+    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_")}
+    e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0", **(env or {}))
+    try:
+        return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=cwd or tempfile.gettempdir())
+    except subprocess.TimeoutExpired:
+        return None
+
+
+def _entries(cache: Path) -> int:
+    return len([p for p in (cache / "gt").glob("*/*") if p.is_dir() and not p.name.startswith(".tmp-")])
+
+
+def _stale(cache: Path) -> int:
+    return len(list((cache / "gt").glob("*/.tmp-*")))
+
+
+def _pngs_ok(d: Path) -> bool:
+    from PIL import Image
+
+    for p in d.rglob("*.png"):
+        if p.name.startswith(".tmp-"):
+            return False
+        try:
+            with Image.open(p) as im:
+                im.load()
+        except Exception:  # noqa: BLE001
+            return False
+    return True
+
+
+def _store_status(store: Path, src: Path) -> list[str]:
+    import sqlite3
+
+    try:
+        con = sqlite3.connect(f"file:{store}?mode=ro", uri=True)
+        rows = [r[0] for r in con.execute("SELECT status FROM runs ORDER BY time")]
+        ok = con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+        con.close()
+        return rows + ([] if ok else ["CORRUPT"])
+    except sqlite3.Error as e:
+        return [f"unreadable: {e}"]
+
+
+def fault_cases():
+    """(name, function(tmp, src) -> (command, env, expected rc, path the message must name, check(result) -> note))."""
+    cases = []
+
+    def render_base(tmp, src):
+        (tmp / "s.toml").write_text(TINY)
+        return ["render", str(tmp / "s.toml"), "--quality", "draft", "--no-previews"]
+
+    def cache_fault(kind, budget=None):
+        def make(tmp, src):
+            cache = tmp / "cache"
+            cache.mkdir()
+            b = budget
+            if budget == "after_exr":  # room for the EXR, not for gt.json
+                probe = warm(tmp, src, tmp / "probe")
+                b = (next((probe / "gt").glob("*/*")) / "gt.exr").stat().st_size + 50
+            cmd = _faulty(kind, cache, b) + render_base(tmp, src) + ["--cache", str(cache)]
+            return cmd, None, 1, cache, lambda r: "" if _entries(cache) == 0 and _stale(cache) == 0 else \
+                f"cache left {_entries(cache)} entries, {_stale(cache)} temporaries"
+        return make
+
+    cases += [("cache read-only", cache_fault("readonly")), ("cache permission denied", cache_fault("denied")),
+              ("cache full during the EXR", cache_fault("full", 0)), ("cache full during gt.json", cache_fault("full", "after_exr"))]
+
+    def cache_is_file(tmp, src):
+        (tmp / "cache").write_text("x")
+        return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache")], None, 1, tmp / "cache", \
+            lambda r: ""
+
+    def cache_gt_is_file(tmp, src):
+        (tmp / "cache").mkdir()
+        (tmp / "cache" / "gt").write_text("x")
+        return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache")], None, 1, tmp / "cache", \
+            lambda r: ""
+
+    cases += [("cache root is a file", cache_is_file), ("cache/gt is a file", cache_gt_is_file)]
+
+    def warm(tmp, src, cache=None):
+        cache = cache or tmp / "cache"
+        r = _run([sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(cache)], src)
+        assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+        return cache
+
+    def out_fault(kind, budget=None, previews=False, previous=False):
+        def make(tmp, src):
+            cache = warm(tmp, src)
+            out = tmp / "out"
+            out.mkdir()
+            old = None
+            if previous:
+                _run([sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(cache), "--out", str(out)], src)
+                old = (out / "tiny" / "gt.exr").read_bytes()
+            args = render_base(tmp, src) + ["--cache", str(cache), "--out", str(out)]
+            if previews:
+                args.remove("--no-previews")
+            cmd = _faulty(kind, out, budget) + args
+
+            def check(r):
+                exr = out / "tiny" / "gt.exr"
+                if previous:
+                    return "" if exr.read_bytes() == old else "the previous gt.exr was damaged"
+                leftovers = [p.name for p in out.rglob(".tmp-*")]
+                if leftovers:
+                    return f"temporaries left: {leftovers}"
+                if exr.exists() and exr.stat().st_size != (next((cache / "gt").glob("*/*")) / "gt.exr").stat().st_size:
+                    return "a truncated gt.exr is left under its final name"
+                if not _pngs_ok(out):
+                    return "a damaged PNG is left"
+                return ""
+            return cmd, None, 1, out, check
+        return make
+
+    cases += [("--out read-only", out_fault("readonly")), ("--out permission denied", out_fault("denied")),
+              ("--out full during gt.exr", out_fault("full", 1000)),
+              ("--out full during the previews", out_fault("full", 60000, previews=True)),
+              ("--out full over a previous render", out_fault("full", 1000, previous=True))]
+
+    def out_is_file(tmp, src):
+        warm(tmp, src)
+        (tmp / "out").write_text("x")
+        return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache"), "--out", str(tmp / "out")], \
+            None, 1, tmp / "out", lambda r: ""
+
+    def out_scene_is_file(tmp, src):
+        warm(tmp, src)
+        (tmp / "out").mkdir()
+        (tmp / "out" / "tiny").write_text("x")
+        return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache"), "--out", str(tmp / "out")], \
+            None, 1, tmp / "out", lambda r: ""
+
+    cases += [("--out is a file", out_is_file), ("--out/<scene> is a file", out_scene_is_file)]
+
+    # ---- the results store
+    def with_store(tmp, src):
+        r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
+                  "fake_run(Path(sys.argv[1]))", str(tmp)], src)
+        assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+        return tmp / "h.sqlite"
+
+    def store_read(kind, command):
+        def make(tmp, src):
+            store = with_store(tmp, src)
+            sdir = tmp / "sdir"
+            sdir.mkdir()
+            for f in tmp.glob("h.sqlite*"):
+                shutil.move(str(f), sdir / f.name)
+            store = sdir / "h.sqlite"
+            args = {"history": ["history"], "report": ["report", "--out", str(tmp / "rep")],
+                    "compare": ["compare", "latest", "latest"]}[command]
+            return _faulty(kind, sdir) + args + ["--store", str(store)], None, 0, None, \
+                lambda r: "" if r.stdout.strip() else "printed nothing"
+        return make
+
+    cases += [("history on a read-only store", store_read("readonly", "history")),
+              ("report on a read-only store", store_read("readonly", "report")),
+              ("compare on a read-only store", store_read("readonly", "compare")),
+              ("history on a store without write permission", store_read("denied", "history"))]
+
+    def store_broken(what):
+        def make(tmp, src):
+            p = tmp / "h.sqlite"
+            if what == "directory":
+                p.mkdir()
+            elif what == "text":
+                p.write_text("this is not a database\n" * 100)
+            else:
+                import sqlite3
+                con = sqlite3.connect(p)
+                con.execute("CREATE TABLE people (name TEXT)")
+                con.commit()
+                con.close()
+            return [sys.executable, "-m", "pbrbench", "history", "--store", str(p)], None, 1, p, lambda r: ""
+        return make
+
+    cases += [("store is a directory", store_broken("directory")), ("store is a text file", store_broken("text")),
+              ("store is another SQLite database", store_broken("foreign"))]
+
+    def report_out_readonly(tmp, src):
+        store = with_store(tmp, src)
+        rep = tmp / "rep"
+        rep.mkdir()
+        return _faulty("readonly", rep) + ["report", "--store", str(store), "--out", str(rep)], None, 1, rep, lambda r: ""
+
+    cases.append(("report with a read-only --out", report_out_readonly))
+
+    # ---- a benchmark run (draft lightness: every render is in the shared cache, read only)
+    def run_args(tmp):
+        return ["run", "--tasks", "lightness", "--quality", "draft", "--cache", SHARED_CACHE, "--no-report"]
+
+    def run_fault(kind, where, budget=None, report=False):
+        def make(tmp, src):
+            sdir, out = tmp / "sdir", tmp / "out"
+            sdir.mkdir()
+            out.mkdir()
+            store = sdir / "h.sqlite"
+            if where == "store":
+                _run([sys.executable, "-m", "pbrbench", "history", "--store", str(store)], src)
+            args = run_args(tmp) + ["--store", str(store), "--out", str(out)]
+            if report:
+                args.remove("--no-report")
+            under = sdir if where == "store" else out
+            if kind == "full" and where == "store":
+                # a store with one complete run, then the disk fills during the next
+                r = _run([sys.executable, "-m", "pbrbench"] + args, src)
+                assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+
+            def check(r):
+                st = _store_status(store, src) if store.exists() else []
+                if any(s.startswith("unreadable") or s == "CORRUPT" for s in st):
+                    return f"store damaged: {st}"
+                if where == "out" and kind != "full" and len(st) > (0 if not store.exists() else 0):
+                    return f"a run was created: {st}"
+                if where == "out" and kind == "full":
+                    if st and st[-1] == "complete":
+                        return "the run is complete although its report could not be written"
+                    sj = list(out.glob("*/scores.json"))
+                    for p in sj:
+                        try:
+                            json.loads(p.read_text())
+                        except ValueError:
+                            return "a truncated scores.json is left"
+                return ""
+            return _faulty(kind, under, budget) + args, None, 1, under, check
+        return make
+
+    cases += [("run with a read-only store directory", run_fault("readonly", "store")),
+              ("run with a full store", run_fault("full", "store", 3)),
+              ("run with a read-only --out", run_fault("readonly", "out")),
+              ("run with --out full during the report", run_fault("full", "out", 4000, report=True))]
+
+    # ---- scratch and cache maintenance
+    def scratch_full(tmp, src):
+        (tmp / "s.toml").write_text(TINY_HF)
+        scratch = tmp / "scratchtmp"
+        scratch.mkdir()
+        return _faulty("full", scratch, 0) + ["render", str(tmp / "s.toml"), "--quality", "draft", "--no-previews",
+                                               "--cache", str(tmp / "cache")], {"TMPDIR": str(scratch)}, 1, scratch, lambda r: ""
+
+    def clear_readonly(tmp, src):
+        cache = warm(tmp, src)
+        return _faulty("readonly", cache) + ["cache", "clear", "--cache", str(cache)], None, 1, cache, \
+            lambda r: "" if _entries(cache) == 1 else "the entry vanished"
+
+    cases += [("scratch directory full (heightfield mesh)", scratch_full),
+              ("cache clear on a read-only cache", clear_readonly)]
+    return cases
+
+
+def classify_fault(name, make, src: Path) -> tuple[str, str]:
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        try:
+            cmd, env, want_rc, path, check = make(tmp, src)
+        except AssertionError as e:
+            return "setup_failed", str(e)[-200:]
+        work = tmp / "cwd"
+        work.mkdir()
+        r = _run(cmd, src, env, cwd=work)
+        if r is None:
+            return "timeout", ""
+        err = r.stderr.strip()
+        lines = [ln for ln in err.splitlines() if ln.strip() and not ln.startswith("pbrbench: no CUDA")]
+        note = check(r)
+        if "Traceback" in err:
+            return "traceback", (lines[-1] if lines else "")[:200]
+        if r.returncode != want_rc:
+            return "other", f"rc={r.returncode} (want {want_rc}) " + " // ".join(lines[-2:])[:200]
+        if want_rc == 1:
+            errs = [ln for ln in lines if "error" in ln]
+            if len(errs) != 1 or (path is not None and str(path) not in errs[0]):
+                return "other", " // ".join(lines[-3:])[:240]
+        if note:
+            return "dirty", note
+        return "clean", (lines[-1][:200] if lines else "") if want_rc else "ok"
+
+
+def measure_faults(src: Path = ROOT, verbose: bool = False) -> Counter:
+    c: Counter = Counter()
+    for name, make in fault_cases():
+        outcome, msg = classify_fault(name, make, src)
+        c[outcome] += 1
+        if verbose:
+            print(f"{name:52s} {outcome:10s} {msg}", flush=True)
+    return c
+
+
+if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "faults":
+    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
+    c = measure_faults(src, verbose=True)
+    print(f"{sum(c.values())} disk faults: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+
+
+if __name__ == "__main__" and (len(sys.argv) < 2 or sys.argv[1] == "scenes"):
+    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
+    c = measure_scenes(src, verbose=True)
+    print(f"{sum(c.values())} scene files: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+
+
+# ----------------------------------------------------------------------------- command-line misuse
+ESC_SCENE = TINY.replace('description = "a lit sphere"', 'description = "red \\u001b[31mALERT\\u001b[0m \\u001b]0;title\\u0007 \\u001b[2J"')
+
+
+def cli_cases():
+    """(name, function(tmp, src) -> (args, env, expected rc, substring the stderr line must hold or None))."""
+    c = []
+
+    def simple(args, rc=1, want=None, env=None):
+        return lambda tmp, src: (args, env, rc, want)
+
+    def with_store(args, rc=1, want=None):
+        def make(tmp, src):
+            r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
+                      "fake_run(Path(sys.argv[1]))", str(tmp)], src)
+            assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+            return [a.replace("STORE", str(tmp / "h.sqlite")).replace("TMP", str(tmp)) for a in args], None, rc, want
+        return make
+
+    def with_scene(args, rc=1, want=None, env=None, text=TINY):
+        def make(tmp, src):
+            (tmp / "s.toml").write_text(text)
+            e = {k: v.replace("TMP", str(tmp)) for k, v in (env or {}).items()}
+            return [a.replace("SCENE", str(tmp / "s.toml")).replace("TMP", str(tmp)) for a in args], e, rc, want
+        return make
+
+    c += [
+        ("no command", simple([], 1)),
+        ("unknown command", simple(["frobnicate"], 1, "invalid choice")),
+        ("unknown option", simple(["render", "--bogus"], 1, "--bogus")),
+        ("misspelt global option", simple(["--versionn"], 1, "--versionn")),
+        ("bad --quality choice", simple(["render", "x", "--quality", "ultra"], 1, "ultra")),
+        ("option without its value", simple(["run", "--tasks"], 1, "--tasks")),
+        ("--workers not a number", simple(["run", "--workers", "abc"], 1, "--workers")),
+        ("--workers 0", simple(["run", "--workers", "0"], 1, "--workers")),
+        ("--workers negative", simple(["run", "--executor", "dask", "--workers", "-2"], 1, "--workers")),
+        ("--seed not a number", simple(["run", "--seed", "x"], 1, "--seed")),
+        ("--seed negative", simple(["run", "--seed", "-1"], 1, "--seed")),
+        ("--limit not a number", simple(["history", "--limit", "x"], 1, "--limit")),
+        ("compare with one run", simple(["compare", "onlyone"], 1, "run_b")),
+        ("cache without action", simple(["cache"], 1, "action")),
+        ("cache bad action", simple(["cache", "wipe"], 1, "wipe")),
+        ("history bad --quality", simple(["history", "--quality", "ultra"], 1, "ultra")),
+        ("render nothing", simple(["render"], 1, "SCENE")),
+        ("render unknown scene", simple(["render", "nosuchscene"], 1, "nosuchscene")),
+        ("render misspelt scene", simple(["render", "sphere_5light"], 1, "did you mean")),
+        ("render missing file", simple(["render", "/nonexistent/x.toml"], 1, "/nonexistent/x.toml")),
+        ("render a directory", simple(["render", "/tmp/"], 1, "directory")),
+        ("render --all with names", simple(["render", "--all", "sphere_5lights"], 1, "--all")),
+        ("run unknown task", simple(["run", "--tasks", "nosuchtask"], 1, "nosuchtask")),
+        ("--workers without dask", simple(["run", "--workers", "2"], 1, "--workers")),
+        ("--scheduler without dask", simple(["run", "--scheduler", "tcp://x:1"], 1, "--scheduler")),
+        ("empty --cache", simple(["cache", "info", "--cache", ""], 1, "--cache")),
+        ("empty --store", simple(["history", "--store", ""], 1, "--store")),
+        ("missing store", simple(["history", "--store", "/nonexistent/h.sqlite"], 1, "/nonexistent/h.sqlite")),
+        ("validate unknown check", simple(["validate", "--checks", "nosuch"], 1, "nosuch")),
+        ("perf unknown area", simple(["perf", "nosuch", "--no-store"], 1, "nosuch")),
+        ("cache info on a file", simple(["cache", "info", "--cache", "/etc/hostname"], 1, "/etc/hostname")),
+        ("PBRBENCH_WORKER_THREADS not a number", simple(["run", "--tasks", "lightness"], 1, "PBRBENCH_WORKER_THREADS",
+                                                         {"PBRBENCH_WORKER_THREADS": "abc"})),
+        ("PBRBENCH_SCENES missing", simple(["scenes"], 1, "/nonexistent", {"PBRBENCH_SCENES": "/nonexistent"})),
+        ("PBRBENCH_VARIANT unknown", with_scene(["render", "SCENE", "--quality", "draft", "--cache", "TMP/c"], 1, "foo_rgb",
+                                                {"PBRBENCH_VARIANT": "foo_rgb"})),
+        ("render --variant unknown", with_scene(["render", "SCENE", "--quality", "draft", "--cache", "TMP/c",
+                                                 "--variant", "foo_rgb"], 1, "foo_rgb")),
+        ("render --variant cuda without a GPU", with_scene(["render", "SCENE", "--quality", "draft", "--cache", "TMP/c",
+                                                            "--variant", "cuda_ad_rgb"], 1, "cuda_ad_rgb",
+                                                           {"PBRBENCH_NO_CUDA": "1"})),
+        ("history --limit 0", with_store(["history", "--store", "STORE", "--limit", "0"], 1, "--limit")),
+        ("history --limit negative", with_store(["history", "--store", "STORE", "--limit", "-3"], 1, "--limit")),
+        ("report unknown run", with_store(["report", "nosuchrun", "--store", "STORE", "--out", "TMP/r"], 1, "nosuchrun")),
+        ("report a run beyond the history", with_store(["report", "-5", "--store", "STORE", "--out", "TMP/r"], 1, "-5")),
+        ("compare unknown runs", with_store(["compare", "aaa", "bbb", "--store", "STORE"], 1, "aaa")),
+        ("compare --rel negative", with_store(["compare", "latest", "latest", "--store", "STORE", "--rel", "-1"], 1, "--rel")),
+        ("compare --rel nan", with_store(["compare", "latest", "latest", "--store", "STORE", "--rel", "nan"], 1, "--rel")),
+        ("run --resume unknown run", with_store(["run", "--resume", "nosuchrun", "--store", "STORE", "--out", "TMP/o"], 1,
+                                                "nosuchrun")),
+        ("run --resume with --tasks", with_store(["run", "--resume", "latest", "--tasks", "lightness", "--store", "STORE"], 1,
+                                                 "--resume")),
+        ("run --variant unknown leaves no run", with_store(["run", "--tasks", "lightness", "--variant", "foo_rgb",
+                                                            "--store", "STORE", "--out", "TMP/o"], 1, "foo_rgb")),
+        ("scenes with terminal escapes in a description", with_scene(["scenes"], 0, None, {"PBRBENCH_SCENES": "TMP"},
+                                                                      text=ESC_SCENE)),
+        ("DRJIT_LIBLLVM_PATH is a renamed LLVM 15", with_scene(["render", "SCENE", "--quality", "draft", "--cache", "TMP/c",
+                                                                "--no-previews"], 0, None,
+                                                               {"DRJIT_LIBLLVM_PATH": "TMP/libLLVM-19.so"})),
+        ("no usable libLLVM: one notice, scalar_rgb", with_scene(["render", "SCENE", "--quality", "draft", "--cache", "TMP/c",
+                                                                  "--no-previews"], 0, None,
+                                                                 {"PBRBENCH_LLVM_SEARCH": "TMP/llvm", "PBRBENCH_NO_CUDA": "1"})),
+    ]
+    return c
+
+
+OLD_LLVM = sorted(p for p in __import__("glob").glob("/usr/lib/*/libLLVM-1[45]*.so*") if os.path.isfile(p) and not os.path.islink(p))
+
+
+def classify_cli(name, make, src: Path) -> tuple[str, str]:
+    with tempfile.TemporaryDirectory() as d:
+        tmp = Path(d)
+        if OLD_LLVM:  # an LLVM 15 under a name that says 19, and a directory holding only it
+            os.symlink(OLD_LLVM[-1], tmp / "libLLVM-19.so")
+            (tmp / "llvm").mkdir()
+            os.symlink(OLD_LLVM[-1], tmp / "llvm" / "libLLVM-19.so")
+        try:
+            args, env, want_rc, want = make(tmp, src)
+        except AssertionError as e:
+            return "setup_failed", str(e)[-200:]
+        store_before = _store_status(tmp / "h.sqlite", src) if (tmp / "h.sqlite").exists() else None
+        work = tmp / "cwd"   # relative defaults (reports/, the store) land inside the case's directory
+        work.mkdir()
+        r = _run([sys.executable, "-m", "pbrbench", *args], src, env, timeout=120, cwd=work)
+        if r is None:
+            return "timeout", ""
+        if any(work.iterdir()) and want_rc == 1:
+            return "other", f"a refused command left files behind: {sorted(p.name for p in work.rglob('*'))[:5]}"
+        err = r.stderr.strip()
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        if "Traceback" in err or r.returncode in (-6, 134):
+            return "traceback", (lines[-1] if lines else f"rc={r.returncode}")[:200]
+        if r.returncode != want_rc:
+            return "other", f"rc={r.returncode} (want {want_rc}) " + " // ".join(lines[-2:])[:200]
+        if "\x1b" in r.stdout or "\x1b" in r.stderr or "\x07" in r.stdout:
+            return "other", "a terminal escape sequence reached the terminal"
+        if want_rc == 1 and (len(lines) > 1 or (want and want not in (lines[0] if lines else ""))):
+            return "other", " // ".join(lines[-3:])[:240]
+        if want_rc == 0 and "LLVM" in name:
+            notes = [ln for ln in lines if "LLVM" in ln]
+            if len(notes) != 1 or "/dev/null" in err:
+                return "other", f"{len(notes)} notices: " + " // ".join(lines[-3:])[:240]
+        if store_before is not None and _store_status(tmp / "h.sqlite", src) != store_before:
+            return "other", f"the store changed: {store_before} -> {_store_status(tmp / 'h.sqlite', src)}"
+        return "clean", (lines[-1][:200] if lines else "ok")
+
+
+def measure_cli(src: Path = ROOT, verbose: bool = False) -> Counter:
+    c: Counter = Counter()
+    for name, make in cli_cases():
+        outcome, msg = classify_cli(name, make, src)
+        c[outcome] += 1
+        if verbose:
+            print(f"{name:48s} {outcome:10s} {msg}", flush=True)
+    return c
+
+
+if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "cli":
+    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
+    c = measure_cli(src, verbose=True)
+    print(f"{sum(c.values())} command-line misuses: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
