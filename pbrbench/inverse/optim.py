@@ -5,10 +5,11 @@ large-steps reparameterisation of a height field.
   :math:`m \leftarrow \beta_1 m + (1-\beta_1) g`, :math:`v \leftarrow \beta_2 v + (1-\beta_2) g^2`,
   :math:`x \leftarrow x - \eta\, \hat m / (\sqrt{\hat v} + \epsilon)` with the bias-corrected
   moments :math:`\hat m = m / (1 - \beta_1^t)`, :math:`\hat v = v / (1 - \beta_2^t)`.
-* ``uniform=True`` (Nicolet, Jacobson & Jakob 2021, Sec. 5): the step is
+* ``uniform="max"`` (Nicolet, Jacobson & Jakob 2021, Sec. 5): the step is
   :math:`\eta\, \hat m / (\max_i \sqrt{\hat v_i} + \epsilon)`, one normalisation for the whole
   vector, so the direction of a preconditioned gradient is kept (per-parameter normalisation
-  would undo the preconditioning).
+  would undo the preconditioning); ``uniform="rms"`` divides by the root mean of the
+  :math:`\hat v_i` instead (less sensitive to one noisy parameter).
 * :class:`LargeSteps`: heights ``z = (I + lambda L)^{-1} u`` with ``L`` the graph Laplacian of the
   grid; the optimiser works on ``u``, whose gradient is ``(I + lambda L)^{-1} dE/dz``: a smoothed
   (Sobolev) gradient that moves the low frequencies of the surface as fast as the high ones,
@@ -32,6 +33,8 @@ class Adam:
 
     def __init__(self, n: int, *, beta1: float = 0.9, beta2: float = 0.999, eps: float = 1e-8,
                  uniform: str | None = None):
+        if uniform not in (None, "max", "rms"):
+            raise ValueError(f"uniform: {uniform!r}; use None (per parameter), 'max' or 'rms'")
         self.m = np.zeros(n)
         self.v = np.zeros(n)
         self.t = 0

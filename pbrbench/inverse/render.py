@@ -52,7 +52,7 @@ def ad_mitsuba():
 
 def camera_frame(camera) -> tuple[np.ndarray, np.ndarray]:
     """``(target, R)``: the film-plane origin and the rows x right, y up, z toward the camera."""
-    from pbrbench.tasks._common import camera_rotation
+    from pbrbench.scene.geometry import camera_rotation
 
     return np.asarray(camera.target, float), camera_rotation(camera)
 

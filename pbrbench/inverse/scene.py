@@ -66,7 +66,7 @@ def frame_extension(spec, height: int, width: int) -> tuple[float, float, float,
     each side of the camera's frame, from the bounding points of its shapes projected onto the
     film plane.  Only this extent is taken from the scene: the surface beyond the frame is the
     continuation of the recovered one."""
-    from pbrbench.tasks._common import camera_rotation
+    from pbrbench.scene.geometry import camera_rotation
 
     cam = spec.camera
     R = camera_rotation(cam)
@@ -85,8 +85,8 @@ def light_dicts(mi, spec, lights: np.ndarray, model: str) -> list[tuple[str, dic
     """Emitter dicts of the K lights: ``model="scene"``: the spec's light set (directional, area
     or point sources exactly as rendered); ``"vectors"``: distant sources built from the light
     vectors (direction and irradiance ``|l|``, camera frame), i.e. the photometric-stereo model."""
+    from pbrbench.scene.geometry import camera_rotation
     from pbrbench.scene.mitsuba_dict import emitter_dict
-    from pbrbench.tasks._common import camera_rotation
 
     k = len(lights)
     if model == "scene":
