@@ -13,7 +13,7 @@ its scene interface, ``docs/inverse.md``):
   al. 2021) of the image loss of Mitsuba's path-traced renders, the residual back-propagated
   through path replay backpropagation (Vicini et al. 2021) of the direct light.
 
-Signature: ``fn(images (K, H, W), lights (K, 3), *, mask, scene, max_depth, <options>)`` with
+Signature: ``fn(images (K, H, W), lights (K, 3), *, mask, scene, max_depth, seed, <options>)`` with
 ``scene`` the :class:`~pbrbench.scene.spec.SceneSpec` of the images (its camera, light set and
 lateral extent are used, never the object's geometry or material) and ``max_depth`` the light
 transport of the images (-1 full interreflection, 2 direct light).
