@@ -57,6 +57,7 @@ def test_infer_imports_only_numpy_scipy_and_checks_at_import_time():
     ("scene", r"^pbrbench\.(infer|tasks|bench|report)"),
     ("metrics", r"^pbrbench\.(render|tasks|bench|report)"),
     ("tasks", r"^pbrbench\.(bench|report)"),
+    ("inverse", r"^pbrbench\.(tasks|bench|report)"),
     ("infer", r"^pbrbench\.(?!infer|checks)"),
     ("checks", r"^pbrbench\.(?!errors)"),
     ("datasets", r"^pbrbench\.(infer|render|scene|tasks|bench|report|registry)"),
@@ -102,3 +103,10 @@ def test_only_settings_reads_pbrbench_environment_variables():
 def test_no_method_module_is_a_big_room():
     big = {str(f.relative_to(PKG)): n for f in files("infer") if (n := len(f.read_text().splitlines())) > 420}
     assert not big, big
+
+
+def test_infer_never_imports_inverse_rendering():
+    """``pbrbench.inverse`` renders (Mitsuba); the NumPy-only inference package must not reach it."""
+    bad = [f"{f.relative_to(PKG)}: {mod}" for f in files("infer") for mod, _, _ in imports(f)
+           if mod.startswith("pbrbench.inverse")]
+    assert not bad, bad

@@ -30,10 +30,13 @@ def _module(tmp_path, name, body):
 def test_builtins_come_from_the_methods_tables_and_every_entry_has_a_version():
     from pbrbench.infer.photometric_stereo import METHODS
     from pbrbench.infer.sfs import METHODS as SFS
+    from pbrbench.inverse import METHODS as INVERSE
 
     reg = builtin_registry(get_tasks())
-    ps = [a.name for a in reg.for_task("photometric_stereo", kinds=["method"])]
+    ps = [a.name for a in reg.for_task("photometric_stereo", kinds=["method"]) if not a.interface]
     assert ps == list(METHODS)
+    inv = [a.name for a in reg.for_task("photometric_stereo", kinds=["method"]) if a.interface == "scene"]
+    assert inv == [f"inverse:{n}" for n in INVERSE]
     assert [a.name for a in reg.for_task("sfs") if a.kind == "method" and not a.interface][:len(SFS)] == list(SFS)
     for a in reg:
         v = a.full_version

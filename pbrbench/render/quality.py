@@ -98,11 +98,14 @@ PRESETS: dict[str, Quality] = {
         # the regression run must stay short (every job also runs its two half-sample replicates):
         # iteration budgets of the iterative SFS methods halved, Mitsunaga-Nayar with a fixed
         # degree instead of its held-out degree search (about 20x slower); coarser meshes for the
-        # radiosity models
+        # radiosity models; a small budget for inverse rendering
         algorithm_options=_frozen({
             "sfs/horn1989": {"max_iter": 50}, "sfs/horn1989+estimated_light": {"max_iter": 50},
             "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
             "hdr/mitsunaga1999": {"degree": 5},
+            # inverse rendering (one scene at draft): two levels, a few iterations, fewer samples
+            "photometric_stereo/inverse:mitsuba_prb": {"levels": (2, 1), "iterations": (6, 4), "spp": 8,
+                                                        "spp_grad": 2},
             # the interreflection task's forward models: 8 patches across the view instead of 16
             **{f"interreflection/{m}": {"cells": 8}
                for m in ("local", "radiosity:1", "radiosity:2", "radiosity:4", "radiosity")},

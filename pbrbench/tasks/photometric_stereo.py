@@ -16,8 +16,16 @@ and any plugin, called as ``fn(images, lights, *, mask)`` with ``images`` (K, H,
 or anything with ``normals`` (H, W, 3) and ``albedo`` (H, W) (attributes, dict keys, or a tuple
 ``(normals, albedo[, valid])``; normals that are not unit length are normalised, pixels outside
 ``valid`` count as invalid estimates); the naive baseline (one least-squares solve with every light,
-shadows included); and, as floors for the height scores, the integration methods of
-:data:`pbrbench.infer.integration.METHODS` applied to the *true* normals (condition ``local``).
+shadows included); as floors for the height scores, the integration methods of
+:data:`pbrbench.infer.integration.METHODS` applied to the *true* normals (condition ``local``); and
+the inverse-rendering methods of :data:`pbrbench.inverse.METHODS` as ``inverse:<name>``
+(``interface="scene"``, ``docs/inverse.md``), called as ``fn(images, lights, *, mask, scene,
+max_depth, seed)`` with the job's :class:`~pbrbench.scene.spec.SceneSpec` (camera, light set,
+extent) and the transport of its images (``max_depth`` -1 under ``global``, else 2).  They render
+(minutes a scene at standard), so they run only on the highest albedo of the concave families
+(:data:`INVERSE_FAMILIES`; ``ps_groove`` alone at a short-subset quality) under
+:data:`INVERSE_CONDITIONS` (``global`` alone at a short-subset quality); their job also shows the
+loss curve and the angular error of their start (Woodham) beside the final one.
 
 Evaluation domain (algorithm independent): the ground-truth mask eroded by one pixel, restricted
 to pixels lit by at least 3 lights in the job's own direct renders (a pixel seen by fewer has no
@@ -51,6 +59,10 @@ FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", 
             "ps_cap")
 REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
 NOISE = 0.01
+INVERSE_FAMILIES = ("ps_groove", "ps_cup", "ps_cap")   # concave: where every local method is biased
+SHORT_INVERSE_FAMILIES = ("ps_groove",)
+INVERSE_CONDITIONS = ("global", "local")
+SHORT_INVERSE_CONDITIONS = ("global",)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
 
 
@@ -129,12 +141,16 @@ class PhotometricStereoTask(Task):
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.integration import METHODS as INTEGRATION
         from pbrbench.infer.photometric_stereo import BASELINES, METHODS
+        from pbrbench.inverse import METHODS as INVERSE
 
         out = [Algorithm(n, self.name, fn) for n, fn in METHODS.items()]
         out += [Algorithm(f"baseline:{n}", self.name, fn, kind="baseline") for n, fn in BASELINES.items()]
         out += [Algorithm(f"integrate:{n}", self.name, fn, kind="floor", conditions=("local",),
                           description="the true normals integrated by this method: the integration floor")
                 for n, fn in INTEGRATION.items()]
+        out += [Algorithm(f"inverse:{n}", self.name, fn, interface="scene", conditions=INVERSE_CONDITIONS,
+                          description="inverse rendering with Mitsuba (needs the scene's camera and lights)")
+                for n, fn in INVERSE.items()]
         return out
 
     # ------------------------------------------------------------------------------ jobs
@@ -212,6 +228,53 @@ class PhotometricStereoTask(Task):
         return C.call(alg, images, lights, mask=mask, quality=quality,
                       check=lambda out: result_arrays(out, images.shape[1:3]))
 
+    @staticmethod
+    def _inverse_applies(job: Job, quality) -> bool:
+        """Whether the inverse-rendering methods run on this job: the highest albedo of a family
+        of :data:`INVERSE_FAMILIES` (or of its area twin) under :data:`INVERSE_CONDITIONS` (the
+        short lists at a short-subset quality)."""
+        if quality is None:
+            from pbrbench.render.quality import get_quality
+
+            quality = get_quality("standard")
+        fam = job.scene.split("[")[0]
+        fam = fam[:-len("_area")] if fam.endswith("_area") else fam
+        if fam not in quality.pick(INVERSE_FAMILIES, SHORT_INVERSE_FAMILIES):
+            return False
+        if job.condition not in quality.pick(INVERSE_CONDITIONS, SHORT_INVERSE_CONDITIONS):
+            return False
+        albedos = [C.sweep_value(s, "albedo") for s in C.family_scenes(fam)]
+        albedos = [a for a in albedos if a is not None]
+        return not albedos or C.sweep_value(job.scene, "albedo") == max(albedos)
+
+    @staticmethod
+    def _solve_scene(alg, job: Job, images, lights, mask, quality, seed: int):
+        """Call an ``interface="scene"`` algorithm: ``(((normals, albedo, valid), raw output),
+        seconds, error)``."""
+        from pbrbench.tasks.interreflection import scene_spec
+
+        spec = scene_spec(job.scene)
+        depth = int(spec.render.max_depth) if C.parse_condition(job.condition)[0] == "global" else 2
+        return C.call(alg, images, lights, mask=mask, scene=spec, max_depth=depth, seed=seed, quality=quality,
+                      check=lambda out: (result_arrays(out, images.shape[1:3]), out))
+
+    @staticmethod
+    def _inverse_figures(res: JobResult, name: str, raw, n_true, domain, valid) -> None:
+        """The loss curve and the angular error of the start beside the final one."""
+        loss = C.attribute(raw, "loss")
+        if loss is not None and len(loss):
+            level = C.attribute(raw, "level")
+            note = f"coarse-to-fine levels (film downsampling) {list(dict.fromkeys(np.asarray(level).tolist()))}" \
+                if level is not None else ""
+            res.plots[f"{name}: loss per iteration"] = C.profile_plot(
+                np.arange(len(loss)), {"objective E": np.asarray(loss, float)}, "iteration", "objective E", note=note)
+        n0 = C.attribute(raw, "initial_normals")
+        if n0 is not None:
+            n0 = np.asarray(n0, float)
+            ok = valid & (np.linalg.norm(n0, axis=-1) > 0)
+            _, emap0 = normal_scores(np.where(ok[..., None], n0, 0.0), n_true, domain, ok)
+            res.error_maps[f"angular error (deg): {name}, its start (Woodham)"] = C.display_map(emap0)
+
     # ----------------------------------------------------------------------------- run
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         algorithms = [a for a in algorithms if a.applies(job.condition)]
@@ -244,7 +307,15 @@ class PhotometricStereoTask(Task):
                 if "true height" not in " ".join(res.error_maps):
                     res.error_maps[f"true height ({alg.name} of the true normals)"] = C.display_map(z)
                 continue
-            out, seconds, err = self._solve(alg, images, lights, gt.mask, quality)
+            raw = None
+            if alg.interface == "scene":
+                if not self._inverse_applies(job, quality):
+                    continue
+                out, seconds, err = self._solve_scene(alg, job, images, lights, gt.mask, quality, seed)
+                if err is None:
+                    out, raw = out
+            else:
+                out, seconds, err = self._solve(alg, images, lights, gt.mask, quality)
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
@@ -257,6 +328,8 @@ class PhotometricStereoTask(Task):
             book.add(alg.name, sc, seconds)
             res.images[f"normals: {alg.name}"] = C.normals_display(n, valid)
             res.error_maps[f"angular error (deg): {alg.name}"] = C.display_map(emap)
+            if raw is not None:
+                self._inverse_figures(res, alg.name, raw, n_true, domain, valid)
             if first and alg.kind == "method":
                 first = False
                 res.images[f"albedo x pi: {alg.name}"] = C.display(np.clip(np.pi * a, 0, 1))
