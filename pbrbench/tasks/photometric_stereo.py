@@ -61,7 +61,10 @@ REFLEX = ("groove_reflex_parallel", "groove_reflex_bisector")
 NOISE = 0.01
 INVERSE_FAMILIES = ("ps_groove", "ps_cup", "ps_cap")   # concave: where every local method is biased
 SHORT_INVERSE_FAMILIES = ("ps_groove",)
-INVERSE_CONDITIONS = ("global", "local")
+INVERSE_APPLIES = ("global", "local")  # the transports the methods model (not area sources)
+# where the benchmark runs them: global alone (three half-sample calls of 1.5-2 min each per job;
+# their local results are measured in docs/inverse.md)
+INVERSE_CONDITIONS = ("global",)
 SHORT_INVERSE_CONDITIONS = ("global",)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
 
@@ -136,6 +139,12 @@ class PhotometricStereoTask(Task):
     short_families = ("sphere_5lights", "ps_groove")
     reflex_families = REFLEX
     short_reflex_families = ("groove_reflex_parallel",)
+    cost_notes = {
+        "inverse:mitsuba_prb": "analysis by synthesis: Adam over a height field and an albedo texture, each "
+                               "iteration a Mitsuba render of every light and its gradient (about 59 M camera "
+                               "paths per call at standard), called three times per job (the two half-sample "
+                               "replicates); run on three scenes only (docs/inverse.md)",
+    }
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:
@@ -148,7 +157,7 @@ class PhotometricStereoTask(Task):
         out += [Algorithm(f"integrate:{n}", self.name, fn, kind="floor", conditions=("local",),
                           description="the true normals integrated by this method: the integration floor")
                 for n, fn in INTEGRATION.items()]
-        out += [Algorithm(f"inverse:{n}", self.name, fn, interface="scene", conditions=INVERSE_CONDITIONS,
+        out += [Algorithm(f"inverse:{n}", self.name, fn, interface="scene", conditions=INVERSE_APPLIES,
                           description="inverse rendering with Mitsuba (needs the scene's camera and lights)")
                 for n, fn in INVERSE.items()]
         return out
