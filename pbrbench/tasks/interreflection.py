@@ -96,6 +96,11 @@ class InterreflectionTask(Task):
              "cap at high albedo, the bump's shadow) and holds where they are dark (black room, albedo 0.1); "
              "radiosity:k counts k bounces. The models of a scene share one solution, whose time is charged to "
              "the first model called. Export/evaluate: not supported (the models take the scene description).")
+    cost_notes = {
+        "local": "charged with the scene's shared work: the patch mesh, the form factors with their visibility "
+                 "rays and the radiosity solution every model of the scene reads (one memoised solve per scene); "
+                 "the local model itself is the direct term",
+    }
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:
