@@ -48,7 +48,10 @@ def cell(value: float, se: float, n: int, *, effect: bool) -> dict:
 
 def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None) -> list[dict]:
     """Per task: ``{"task", "metric", "better", "unit", "reference", "columns", "rows",
-    "noise_floor"}``; ``rows``: ``[{"algorithm", "cells": [cell per column]}]``; ``geometry``:
+    "noise_floor", "partial"}``; ``rows``: ``[{"algorithm", "cells": [cell per column]}]``;
+    ``partial``: algorithms with no score under the reference (run on a subset of scenes and
+    conditions), each condition's mean ``beside`` every algorithm scored on all the same scenes
+    (``[{"algorithm", "condition", "scenes", "value", "se", "n", "beside": [...]}]``); ``geometry``:
     scene -> "convex" / "concave" (from the scene files' tags)."""
     geometry = geometry or {}
     by_task = defaultdict(list)
@@ -80,9 +83,26 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
             columns.append({"label": f"{c} − {ref}", "condition": c, "group": None, "effect": True})
             if len(groups) > 1 and c.split("+")[0] in SPLIT_BASES and ref.split("+")[0] not in SPLIT_BASES:
                 columns += [{"label": f"{c} − {ref} ({g})", "condition": c, "group": g, "effect": True} for g in groups]
-        table = []
+        table, partial = [], []
         for a in algs:
             base = at[(a, ref)]
+            if not base:   # run on a subset only (e.g. an expensive method): beside the others on its scenes
+                for c in conds:
+                    mine = at[(a, c)]
+                    if not mine:
+                        continue
+                    keys = sorted(mine)
+                    m, se = mean_se([mine[k]["value"] for k in keys], [mine[k].get("uncertainty") for k in keys])
+                    beside = []
+                    for b in algs:
+                        theirs = at[(b, c)]
+                        if b != a and all(k in theirs for k in keys):
+                            bm, bse = mean_se([theirs[k]["value"] for k in keys],
+                                              [theirs[k].get("uncertainty") for k in keys])
+                            beside.append({"algorithm": b, **cell(bm, bse, len(keys), effect=False)})
+                    partial.append({"algorithm": a, "condition": c, "scenes": keys,
+                                    **cell(m, se, len(keys), effect=False), "beside": beside})
+                continue
             cells = []
             for col in columns:
                 if not col["effect"]:
@@ -104,7 +124,8 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
         floor = ses[len(ses) // 2] if ses else float("nan")
         out.append({"task": task, "metric": metric, "better": rows[0].get("better", "lower"),
                     "unit": rows[0].get("unit", ""), "reference": ref, "columns": columns, "rows": table,
-                    "noise_floor": floor, "description": ti.get("description", ""), "notes": ti.get("notes", "")})
+                    "noise_floor": floor, "description": ti.get("description", ""), "notes": ti.get("notes", ""),
+                    "partial": partial})
     return out
 
 

@@ -100,7 +100,9 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                 cells.append({"text": format_cell(c), "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
                               "cls": cls, "title": title, "mark": marks.get((t["task"], r["algorithm"], col["condition"]))})
             rows.append({"algorithm": r["algorithm"], "cells": cells})
-        out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows))
+        partial = [dict(p, text=format_cell(p), beside=[dict(b, text=format_cell(b)) for b in p["beside"]])
+                   for p in t["partial"]]
+        out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows, partial=partial))
     return out
 
 

@@ -67,3 +67,26 @@ def test_no_uncertainty_never_makes_an_effect():
     (t,) = effect_tables(scores, INFO)
     eff = t["rows"][0]["cells"][1]
     assert eff["value"] == 4.0 and eff["significant"] is None and not eff["insignificant"]
+
+
+def test_an_algorithm_run_on_a_subset_is_shown_beside_the_others_on_its_scenes():
+    # "inv" has no reference score (it runs under global on the cup only): it is not a row of the
+    # table (whose cells it cannot fill) but a line beside every algorithm scored on the same scenes
+    scores = [s("cup", "local", 1.0), s("cup", "global", 9.0), s("ball", "local", 1.0), s("ball", "global", 2.0),
+              s("cup", "global", 3.0, alg="inv", unc=0.3), s("ball", "local", 5.0, alg="ballonly"),
+              s("ball", "global", 6.0, alg="ballonly")]
+    (t,) = effect_tables(scores, INFO)
+    assert [r["algorithm"] for r in t["rows"]] == ["ballonly", "m"]
+    (p,) = t["partial"]
+    assert p["algorithm"] == "inv" and p["condition"] == "global" and p["scenes"] == ["cup"]
+    assert p["value"] == pytest.approx(3.0) and p["se"] == pytest.approx(0.3)
+    assert [(b["algorithm"], b["value"]) for b in p["beside"]] == [("m", pytest.approx(9.0))]  # not ballonly
+
+
+def test_the_report_prints_the_subset_line(tmp_path):
+    from pbrbench.report.html import headline_tables
+
+    scores = [s("cup", "local", 1.0), s("cup", "global", 9.0), s("cup", "global", 3.0, alg="inv", unc=0.3)]
+    (h,) = headline_tables(scores, INFO)
+    (p,) = h["partial"]
+    assert p["text"] == "3 ± 0.3" and p["beside"][0]["text"] == "9 ± 0.1"
