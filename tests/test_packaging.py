@@ -1,5 +1,7 @@
 """A wheel of pbrbench, installed outside the source checkout, ships its scene library and runs
-the draft benchmark (the scene files are package data, nothing reads the checkout)."""
+a draft benchmark task and writes its report (the scene files and the report's templates are package
+data, nothing reads the checkout).  One task: the whole draft benchmark runs from the checkout in the
+regression suite; here it would only repeat those jobs."""
 
 from __future__ import annotations
 
@@ -39,7 +41,9 @@ def test_wheel_outside_the_checkout_lists_scenes_and_runs_draft(tmp_path, cache_
     assert where.startswith(str(site)) and library.startswith(str(site)), q.stdout
     q = run("-m", "pbrbench", "scenes")
     assert q.returncode == 0 and "ps_groove" in q.stdout and "hdr_scene" in q.stdout, q.stderr[-2000:]
-    q = run("-m", "pbrbench", "run", "--quality", "draft", "--out", str(work / "reports"))
+    q = run("-m", "pbrbench", "run", "--quality", "draft", "--tasks", "lightness", "--out", str(work / "reports"))
     assert q.returncode == 0, q.stdout[-2000:] + q.stderr[-3000:]
     assert (work / "reports" / "history.sqlite").is_file() and "report: " in q.stdout
+    report = Path(q.stdout.split("report: ")[-1].strip())
+    assert (report.parent / "style.css").is_file() and (report.parent / "task-lightness.html").is_file()
     assert "baselines:" not in q.stdout  # a wheel has no regression baselines, and says nothing about them
