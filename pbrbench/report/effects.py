@@ -40,8 +40,13 @@ def base_scene(scene: str) -> str:
     return scene.split(":", 1)[0]
 
 
-def cell(value: float, se: float, n: int, *, effect: bool) -> dict:
-    sig = significant(value, se) if effect else None
+# a cost smaller than this fraction of the reference value is float32 rounding of one pipeline run
+# twice on identical inputs (a convex scene's global and local images agree to ~1e-7), never an effect
+ROUNDING = 1e-6
+
+
+def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.0) -> dict:
+    sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0) if effect else None
     return {"value": value, "se": se, "n": n, "effect": effect, "significant": sig,
             "insignificant": sig is False}
 
@@ -118,7 +123,8 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
                     continue
                 m, se = mean_se([other[k]["value"] - base[k]["value"] for k in keys],
                                 [paired_se(other[k], base[k]) for k in keys])
-                cells.append(cell(m, se, len(keys), effect=True))
+                ref_mean = sum(base[k]["value"] for k in keys) / len(keys)
+                cells.append(cell(m, se, len(keys), effect=True, reference=ref_mean))
             table.append({"algorithm": a, "cells": cells})
         ses = sorted(s["uncertainty"] for s in rows if s["condition"] == ref and finite(s.get("uncertainty")))
         floor = ses[len(ses) // 2] if ses else float("nan")

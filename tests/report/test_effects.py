@@ -90,3 +90,16 @@ def test_the_report_prints_the_subset_line(tmp_path):
     (h,) = headline_tables(scores, INFO)
     (p,) = h["partial"]
     assert p["text"] == "3 ± 0.3" and p["beside"][0]["text"] == "9 ± 0.1"
+
+
+def test_rounding_sized_costs_are_not_effects():
+    # a convex scene's global and local images are the same render: their scores differ by float32
+    # rounding with an even smaller paired SE; that is not a gain
+    scores = [s("ball", "local", 9.46, unc=1e-4, rep=(9.46, 9.46)),
+              s("ball", "global", 9.46 - 8.8e-11, unc=1e-4, rep=(9.46 - 8.8e-11, 9.46 - 8.7e-11))]
+    (t,) = effect_tables(scores, INFO)
+    c = t["rows"][0]["cells"][1]
+    assert c["value"] == pytest.approx(-8.8e-11, rel=0.05) and c["insignificant"] is True
+    scores[1] = s("ball", "global", 9.0, unc=1e-4, rep=(9.0, 9.0))
+    (t,) = effect_tables(scores, INFO)
+    assert t["rows"][0]["cells"][1]["significant"] is True
