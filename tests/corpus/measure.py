@@ -46,11 +46,18 @@ def expectations(path: Path) -> dict:
     return {"expect": exp, "stage": stage, "class": cls}
 
 
-def run_cli(args: list[str], *, src: Path = ROOT, env: dict | None = None, timeout: float = 60, cwd=None):
-    # DRJIT_LIBLLVM_PATH: set in this process by its own variant choice, not by the user; a case sets it itself
+def child_env(src: Path, env: dict | None = None) -> dict:
+    """The environment of a pbrbench child process: this one's without PBRBENCH_* settings and
+    without DRJIT_LIBLLVM_PATH (set in this process by its own variant choice, not by the user; a
+    case sets it itself), pbrbench imported from ``src``, then ``env``."""
     e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_") and k != "DRJIT_LIBLLVM_PATH"}
     e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0")
     e.update(env or {})
+    return e
+
+
+def run_cli(args: list[str], *, src: Path = ROOT, env: dict | None = None, timeout: float = 60, cwd=None):
+    e = child_env(src, env)
     # cwd outside any checkout: ``python -m`` puts the working directory first on sys.path
     cwd = cwd or tempfile.gettempdir()
     try:
@@ -116,9 +123,7 @@ def _faulty(kind, under, budget=None):
 
 
 def _run(cmd, src, env=None, timeout=300, cwd=None):
-    # DRJIT_LIBLLVM_PATH: set in this process by its own variant choice, not by the user; a case sets it itself
-    e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_") and k != "DRJIT_LIBLLVM_PATH"}
-    e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0", **(env or {}))
+    e = child_env(src, env)
     try:
         return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=cwd or tempfile.gettempdir())
     except subprocess.TimeoutExpired:
