@@ -17,23 +17,31 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 from pbrbench.errors import UserError
 
 
 def register(sub):
-    from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
-    from pbrbench.infer.integration import METHODS as INTEGRATION
-    from pbrbench.infer.lightness import METHODS as LIGHTNESS
-    from pbrbench.infer.photometric_stereo import METHODS as PS
+    # the methods tables (and with them the inference package, SciPy) are imported only when
+    # `pbrbench infer PROBLEM` is parsed or its help shown (main.Parser's fill)
+    sub.add_parser("infer", help="run inference on your own data (DiLiGenT folder, image, bracket)",
+                   description=__doc__.split("\n", 2)[2].strip(), formatter_class=_raw(), fill=_add_problems)
 
-    p = sub.add_parser("infer", help="run inference on your own data (DiLiGenT folder, image, bracket)",
-                       description=__doc__.split("\n", 2)[2].strip(), formatter_class=_raw())
+
+def _add_problems(p):
     s = p.add_subparsers(dest="problem", metavar="PROBLEM")
     s.required = True
-    ps = s.add_parser("photometric-stereo", aliases=["photometric_stereo"],
-                      help="normals, albedo and height from a DiLiGenT-layout folder or a pbrbench render")
+    s.add_parser("photometric-stereo", aliases=["photometric_stereo"],
+                 help="normals, albedo and height from a DiLiGenT-layout folder or a pbrbench render",
+                 fill=_add_ps_options)
+    s.add_parser("retinex", aliases=["lightness"], help="reflectance and shading from one image",
+                 fill=_add_retinex_options)
+    s.add_parser("hdr", help="camera response and merged radiance from an exposure bracket", fill=_add_hdr_options)
+
+
+def _add_ps_options(ps):
+    from pbrbench.infer.integration import METHODS as INTEGRATION
+    from pbrbench.infer.photometric_stereo import METHODS as PS
+
     ps.add_argument("dir", metavar="DIR")
     ps.add_argument("--out", required=True, metavar="OUT")
     ps.add_argument("--method", choices=list(PS), default="woodham1980", help="default: woodham1980")
@@ -42,7 +50,11 @@ def register(sub):
     ps.add_argument("--drop-first", type=int, default=0, metavar="N",
                     help="leave out the first N images (e.g. 20 for DiLiGenT's bearPNG)")
     ps.set_defaults(func=run_ps)
-    rx = s.add_parser("retinex", aliases=["lightness"], help="reflectance and shading from one image")
+
+
+def _add_retinex_options(rx):
+    from pbrbench.infer.lightness import METHODS as LIGHTNESS
+
     rx.add_argument("image", metavar="IMAGE", help="an image file, or an MIT Intrinsic Images object folder")
     rx.add_argument("--out", required=True, metavar="OUT")
     rx.add_argument("--method", choices=list(LIGHTNESS), default="blake1985", help="default: blake1985")
@@ -51,7 +63,11 @@ def register(sub):
     rx.add_argument("--gamma", choices=["auto", "linear", "srgb"], default="auto",
                     help="pixel encoding: auto = 8-bit files are sRGB, 16-bit / float are linear")
     rx.set_defaults(func=run_retinex)
-    hd = s.add_parser("hdr", help="camera response and merged radiance from an exposure bracket")
+
+
+def _add_hdr_options(hd):
+    from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
+
     hd.add_argument("dir", metavar="DIR")
     hd.add_argument("--out", required=True, metavar="OUT")
     hd.add_argument("--method", choices=list(CALIBRATION_METHODS), default="debevec1997", help="default: debevec1997")
@@ -90,6 +106,8 @@ class _Stages:
 # ----------------------------------------------------------------------------- photometric stereo
 def _ps_input(d: Path, drop: int):
     """(name, grey images (K, H, W), lights (K, 3), mask, true normals or None, pixel size)."""
+    import numpy as np
+
     from pbrbench.datasets import is_diligent, load_diligent
 
     if not d.is_dir():
@@ -112,6 +130,8 @@ def _ps_input(d: Path, drop: int):
 
 
 def run_ps(args) -> int:
+    import numpy as np
+
     from pbrbench import io
     from pbrbench.infer.integration import integrate_normals
     from pbrbench.infer.photometric_stereo import photometric_stereo
@@ -170,10 +190,14 @@ def run_ps(args) -> int:
 
 # ----------------------------------------------------------------------------- retinex
 def _srgb_decode(x):
+    import numpy as np
+
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
 def _rx_input(path: Path, gamma: str, mask_file):
+    import numpy as np
+
     from pbrbench import io
     from pbrbench.datasets import is_mit, load_mit_object
     from pbrbench.datasets.files import read_mask
@@ -212,6 +236,8 @@ def _rx_input(path: Path, gamma: str, mask_file):
 
 
 def run_retinex(args) -> int:
+    import numpy as np
+
     from pbrbench import io
     from pbrbench.infer.lightness import lightness
 
@@ -247,6 +273,8 @@ def run_retinex(args) -> int:
 
 # ----------------------------------------------------------------------------- hdr
 def run_hdr(args) -> int:
+    import numpy as np
+
     from pbrbench import io
     from pbrbench.datasets import load_bracket
     from pbrbench.infer.hdr import calibrate_response, merge_hdr

@@ -29,7 +29,35 @@ EXIT_OK, EXIT_USER, EXIT_REGRESSION, EXIT_INTERRUPTED = 0, 1, 2, 130
 
 
 class Parser(argparse.ArgumentParser):
-    """argparse with usage errors as one line and exit code 1 (2 is reserved for regressions)."""
+    """argparse with usage errors as one line and exit code 1 (2 is reserved for regressions).
+
+    ``fill`` (a keyword of ``add_parser``): a function ``parser -> None`` that adds the parser's
+    arguments (and sub-subcommands) when the parser is first used: parsed, or its usage or help
+    formatted.  A subcommand whose options need heavy imports (the methods tables of ``infer``,
+    the checks of ``validate``) then costs nothing to ``pbrbench --help``, ``pbrbench scenes`` or
+    a usage error of another subcommand; only its name and help line are needed up front.
+    """
+
+    def __init__(self, *args, fill=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._deferred_fill = fill
+
+    def _fill(self) -> None:
+        fill, self._deferred_fill = self._deferred_fill, None
+        if fill is not None:
+            fill(self)
+
+    def parse_known_args(self, args=None, namespace=None):
+        self._fill()
+        return super().parse_known_args(args, namespace)
+
+    def format_usage(self):
+        self._fill()
+        return super().format_usage()
+
+    def format_help(self):
+        self._fill()
+        return super().format_help()
 
     def error(self, message):
         self.exit(EXIT_USER, f"{self.prog}: error: {printable(message)} (see `{self.prog} --help`)\n")

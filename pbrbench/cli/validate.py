@@ -19,9 +19,15 @@ from pbrbench.cli.common import add_cache, add_quality, add_variant, settings
 
 
 def register(sub):
+    # the checks (render.proofs: the scene schema, pydantic) are imported only when `pbrbench
+    # validate` is parsed or its help shown (main.Parser's fill)
+    sub.add_parser("validate", help="check the renderer against closed forms and statistical tests (exit 2 on failure)",
+                   fill=_add_options)
+
+
+def _add_options(p):
     from pbrbench.render.proofs import CHECKS
 
-    p = sub.add_parser("validate", help="check the renderer against closed forms and statistical tests (exit 2 on failure)")
     add_quality(p, default="draft")
     add_variant(p)
     add_cache(p)
