@@ -1,32 +1,159 @@
-"""The statistics of stored scores: one standard error from replicate values, the standard error
-of a difference and of a mean over scenes, and when a difference is an effect.
+"""The statistics of stored scores: a jackknife standard error with its degrees of freedom, a
+Monte Carlo bias estimate, the standard error of a difference and of a mean over scenes, when a
+difference is an effect, and when the replicates disagree beyond the model (a flipped discrete
+choice).
 
-The replicates (:mod:`pbrbench.bench.uncertainty` computes them) are ``rep_a`` and ``rep_b``, a
-score recomputed on each of the two half-sample renders of its ground truth with the same seed,
-and ``rep_noise``, the score recomputed on the full ground truth with a second seed where the
-inputs depend on the seed.  Only the standard library is used.
+Every rendered pass is the mean of ``G`` independent sample groups.  A score ``v`` computed on the
+full ground truth is recomputed on each of the ``G`` delete-one-group ground truths (every group
+but ``i``), with the same seed: the replicates ``v_(i)`` (:mod:`pbrbench.bench.uncertainty`).
+The delete-one-group jackknife (Quenouille 1956, Tukey 1958; Efron & Stein 1981) gives
+
+.. math::
+
+    \\bar v = \\frac1G \\sum_i v_{(i)}, \\qquad
+    \\mathrm{SE}^2 = \\frac{G-1}{G} \\sum_i (v_{(i)} - \\bar v)^2 \\quad (G - 1 \\text{ dof}), \\qquad
+    \\hat b = (G - 1)(\\bar v - v),
+
+``\\hat b`` the bias that render noise gives the score (a score that is not linear in the
+images is biased by O(1/spp): each replicate has ``(G-1)/G`` of the samples, so its bias is
+``G/(G-1)`` times the full score's) and ``v - \\hat b`` the bias-corrected score.  Where the inputs
+also depend on the seed (injected camera noise), a second seed's score ``v_n`` adds
+``(v - v_n)^2 / 2`` with one degree of freedom; the degrees of freedom of a sum of variances
+come from the Welch-Satterthwaite rule.  Intervals use Student's t on those degrees of freedom.
+
+Only the standard library and, for the t quantiles, SciPy (imported on first use) are used.
+
+References
+----------
+M. H. Quenouille, "Notes on bias in estimation", Biometrika 43, 1956.  B. Efron, C. Stein,
+"The jackknife estimate of variance", Annals of Statistics 9, 1981.  F. E. Satterthwaite, "An
+approximate distribution of estimates of variance components", Biometrics Bulletin 2, 1946.
+R. B. Dean, W. J. Dixon, "Simplified statistics for small numbers of observations", Analytical
+Chemistry 23, 1951 (the gap test of :func:`unstable`).
 """
 
 from __future__ import annotations
 
+import json
 import math
+from functools import lru_cache
 
-SIGNIFICANCE = 2.0   # a difference is an effect beyond this many combined standard errors
+CONFIDENCE = 0.95    # two-sided level of the intervals and of "a difference is an effect"
+SIGNIFICANCE = 2.0   # the same, in standard errors, for infinitely many degrees of freedom (z ~ 1.96)
+# largest gap between sorted replicates / their range above which the replicates are bimodal
+# (a discrete choice flipped): the 99.9th percentile of the statistic for G Gaussian replicates
+# (Monte Carlo, 10^6 draws each; tests/test_uncertainty_stats.py re-measures it)
+GAP_CRITICAL = {3: 0.9994, 4: 0.9783, 5: 0.9242, 6: 0.8613, 7: 0.8028, 8: 0.7557}
+UNSTABLE_MIN_GAP = 0.05  # a flip moves the score by at least this fraction of its size: smaller gaps
+                         # are the quantisation of a counting metric (one pixel more or less), not a flip
 
 
 def finite(x) -> bool:
-    return x is not None and isinstance(x, (int, float)) and math.isfinite(x)
+    return x is not None and isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
 
 
-def standard_error(value: float, rep_a=None, rep_b=None, rep_noise=None) -> float:
-    """One standard error of ``value`` from its replicates (NaN when none is usable)."""
+@lru_cache(maxsize=256)
+def t_quantile(dof: float, q: float = 0.5 + CONFIDENCE / 2) -> float:
+    """Student's t quantile ``q`` on ``dof`` degrees of freedom (the normal quantile for
+    ``dof = inf``; NaN for ``dof < 1`` or unknown)."""
+    if not finite(dof) and dof != math.inf:
+        return float("nan")
+    if dof < 1:
+        return float("nan")
+    from scipy import stats
+
+    return float(stats.norm.ppf(q) if dof == math.inf or dof > 1e6 else stats.t.ppf(q, dof))
+
+
+def replicates_of(s: dict) -> list[float] | None:
+    """The delete-one-group replicate values of a score dict: ``replicates`` (a list or its JSON
+    text); for scores stored before the groups existed, the two half-sample values ``rep_a``,
+    ``rep_b`` are the two-group jackknife's replicates (the replicate that deletes half ``a`` is
+    half ``b``).  None when there are none or any is not finite."""
+    r = s.get("replicates")
+    if isinstance(r, str):
+        try:
+            r = json.loads(r)
+        except ValueError:
+            r = None
+    if r is None and s.get("rep_a") is not None and s.get("rep_b") is not None:
+        r = [s["rep_b"], s["rep_a"]]
+    if not r or len(r) < 2:
+        return None
+    try:
+        r = [float(v) for v in r]
+    except (TypeError, ValueError):
+        return None
+    return r if all(math.isfinite(v) for v in r) else None
+
+
+def jackknife(value: float, reps) -> tuple[float, float, int]:
+    """``(SE, bias, dof)`` of ``value`` from its delete-one-group replicates ``reps``
+    (module docstring); NaN and dof 0 when fewer than 2 finite replicates or ``value`` is not finite."""
+    if reps is None or len(reps) < 2 or not finite(float(value)) or not all(math.isfinite(float(r)) for r in reps):
+        return float("nan"), float("nan"), 0
+    G = len(reps)
+    m = sum(reps) / G
+    var = (G - 1) / G * sum((r - m) ** 2 for r in reps)
+    return math.sqrt(var), (G - 1) * (m - value), G - 1
+
+
+def satterthwaite(parts: list[tuple[float, float]]) -> float:
+    """Degrees of freedom of ``sum var_k`` for ``parts = [(var_k, dof_k)]`` (Welch-Satterthwaite):
+    ``(sum var_k)^2 / sum(var_k^2 / dof_k)``; inf when every part is 0."""
+    tot = sum(v for v, _ in parts)
+    den = sum(v * v / d for v, d in parts if d > 0 and v > 0)
+    if tot <= 0 or den <= 0:
+        return math.inf
+    return tot * tot / den
+
+
+def estimate(value: float, reps=None, rep_noise=None) -> dict:
+    """``uncertainty`` (one standard error), ``dof``, ``bias`` and ``unstable`` of a score from its
+    replicates (module docstring); NaN / 0 / None where they cannot be estimated."""
+    se_j, bias, dof_j = jackknife(value, reps)
     parts = []
-    if rep_a is not None and rep_b is not None and math.isfinite(rep_a) and math.isfinite(rep_b):
-        parts.append(((rep_a - rep_b) / 2.0) ** 2)
-    if rep_noise is not None and math.isfinite(rep_noise) and math.isfinite(value):
-        parts.append((value - rep_noise) ** 2 / 2.0)
-    return math.sqrt(sum(parts)) if parts else float("nan")
+    if dof_j:
+        parts.append((se_j * se_j, dof_j))
+    if finite(rep_noise) and finite(value):
+        parts.append(((value - rep_noise) ** 2 / 2.0, 1))
+    if not parts:
+        return {"uncertainty": float("nan"), "dof": 0.0, "bias": float("nan"), "unstable": None}
+    var = sum(v for v, _ in parts)
+    dof = satterthwaite(parts) if var > 0 else float(sum(d for _, d in parts))
+    return {"uncertainty": math.sqrt(var), "dof": round(float(min(dof, sum(d for _, d in parts))), 3), "bias": bias,
+            "unstable": unstable(reps) if dof_j else None}
 
+
+def standard_error(value: float, reps=None, rep_noise=None) -> float:
+    """One standard error of ``value`` from its replicates (NaN when none is usable)."""
+    return estimate(value, reps, rep_noise)["uncertainty"]
+
+
+def unstable(reps) -> bool | None:
+    """Whether the replicates split into two groups far apart (a discrete choice of the pipeline
+    flipped between them): the largest gap between the sorted values, over their range, exceeds
+    :data:`GAP_CRITICAL` (a spread a smooth score's Gaussian replicates reach once in 1000), and
+    the gap is at least :data:`UNSTABLE_MIN_GAP` of the score's magnitude.  None below 3
+    replicates (no test)."""
+    if reps is None or len(reps) < 3:
+        return None
+    v = sorted(float(r) for r in reps)
+    rng = v[-1] - v[0]
+    scale = max(abs(x) for x in v)
+    gap = max(b - a for a, b in zip(v, v[1:], strict=False))
+    if rng <= 0 or gap < UNSTABLE_MIN_GAP * scale:
+        return False
+    crit = GAP_CRITICAL.get(len(v), GAP_CRITICAL[max(GAP_CRITICAL)])
+    return gap / rng > crit
+
+
+def combined(*pairs) -> tuple[float, float]:
+    """``(sqrt(sum se^2), dof)`` of independent errors given as ``(se, dof)`` pairs (NaN if any
+    se is missing); dof by Welch-Satterthwaite."""
+    if not pairs or not all(finite(se) for se, _ in pairs):
+        return float("nan"), 0.0
+    return math.sqrt(sum(se * se for se, _ in pairs)), satterthwaite([(se * se, d or math.inf) for se, d in pairs])
 
 
 def combined_se(*ses) -> float:
@@ -36,40 +163,118 @@ def combined_se(*ses) -> float:
     return math.sqrt(sum(s * s for s in ses))
 
 
-def mean_se(values: list[float], ses: list[float]) -> tuple[float, float]:
-    """Mean of independent values and its standard error ``sqrt(sum se^2) / n`` (NaN if any SE is)."""
+def mean_se(values: list[float], ses: list[float], dofs: list[float] | None = None) -> tuple[float, float, float]:
+    """Mean of independent values, its standard error ``sqrt(sum se^2) / n`` (NaN if any SE is)
+    and the Welch-Satterthwaite degrees of freedom of that error (inf when ``dofs`` is omitted)."""
     n = len(values)
     if n == 0:
-        return float("nan"), float("nan")
+        return float("nan"), float("nan"), 0.0
     m = sum(values) / n
-    return m, combined_se(*ses) / n
+    if dofs is None:
+        return m, combined_se(*ses) / n, math.inf
+    se, dof = combined(*zip(ses, dofs, strict=True))
+    return m, se / n, dof
 
 
-def significant(difference: float, se: float, floor: float = 0.0) -> bool | None:
-    """True when ``|difference|`` exceeds ``SIGNIFICANCE`` standard errors plus ``floor``; None
-    when the standard error is unknown."""
-    if not finite(se) or not finite(difference):
+def limit(se: float, dof: float = math.inf) -> float:
+    """Half-width of the two-sided :data:`CONFIDENCE` interval: ``t(dof) * se``."""
+    return t_quantile(dof if dof else math.inf) * se if finite(se) else float("nan")
+
+
+def significant(difference: float, se: float, floor: float = 0.0, dof: float = math.inf) -> bool | None:
+    """True when ``|difference|`` exceeds the :data:`CONFIDENCE` interval (Student's t on ``dof``
+    degrees of freedom) plus ``floor``; None when the standard error is unknown."""
+    if not finite(se) or not finite(difference) or (dof is not None and finite(dof) and dof < 1):
         return None
-    return abs(difference) > SIGNIFICANCE * se + floor
+    return abs(difference) > limit(se, dof) + floor
+
+
+def paired(x: dict, ref: dict) -> tuple[float, float]:
+    """``(SE, dof)`` of ``x.value - ref.value`` for two score dicts.  When both come from one
+    ground truth (the same render, e.g. global and local of one scene) with the same number of
+    replicates, the jackknife of the difference of the paired replicates, which keeps their
+    correlation; otherwise the two are independent and their errors add in quadrature."""
+    same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
+    rx, rr = replicates_of(x), replicates_of(ref)
+    if same_gt and rx and rr and len(rx) == len(rr) and finite(x.get("value")) and finite(ref.get("value")):
+        se, _, dof = jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])
+        parts = [(se * se, dof)]
+        for s in (x, ref):
+            if finite(s.get("rep_noise")):
+                parts.append(((s["value"] - s["rep_noise"]) ** 2 / 2.0, 1))
+        var = sum(v for v, _ in parts)
+        return math.sqrt(var), (satterthwaite(parts) if var > 0 else float(dof))
+    ux, ur = x.get("uncertainty"), ref.get("uncertainty")
+    if not (finite(ux) and finite(ur)):
+        return float("nan"), 0.0
+    return combined((ux, _dof(x)), (ur, _dof(ref)))
+
+
+def bias_of(s: dict) -> float:
+    """A stored score's Monte Carlo bias estimate (from its replicates when ``bias`` is absent)."""
+    b = s.get("bias")
+    if finite(b):
+        return float(b)
+    return jackknife(s.get("value", float("nan")), replicates_of(s))[1]
+
+
+def paired_bias(x: dict, ref: dict) -> float:
+    """Monte Carlo bias of ``x.value - ref.value``: the jackknife of the paired replicates' differences
+    when both come from one ground truth, else the difference of the two biases."""
+    same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
+    rx, rr = replicates_of(x), replicates_of(ref)
+    if same_gt and rx and rr and len(rx) == len(rr) and finite(x.get("value")) and finite(ref.get("value")):
+        return jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])[1]
+    return bias_of(x) - bias_of(ref)
 
 
 def paired_se(x: dict, ref: dict) -> float:
-    """Standard error of ``x.value - ref.value`` for two scores (dicts with ``uncertainty`` and
-    the replicate values).  When both come from one ground truth (the same render: e.g. global and
-    local of one scene), the difference of their paired half-sample replicates is used, which keeps
-    the correlation between them; otherwise the two are independent and their errors add in
-    quadrature."""
-    same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
-    if same_gt and all(v is not None and math.isfinite(v) for v in
-                       (x.get("rep_a"), x.get("rep_b"), ref.get("rep_a"), ref.get("rep_b"))):
-        d_a = x["rep_a"] - ref["rep_a"]
-        d_b = x["rep_b"] - ref["rep_b"]
-        parts = [((d_a - d_b) / 2.0) ** 2]
-        for s in (x, ref):
-            if s.get("rep_noise") is not None and math.isfinite(s["rep_noise"]):
-                parts.append((s["value"] - s["rep_noise"]) ** 2 / 2.0)
-        return math.sqrt(sum(parts))
-    ux, ur = x.get("uncertainty"), ref.get("uncertainty")
-    if ux is None or ur is None or not (math.isfinite(ux) and math.isfinite(ur)):
-        return float("nan")
-    return math.sqrt(ux * ux + ur * ur)
+    """Standard error of ``x.value - ref.value`` (:func:`paired`)."""
+    return paired(x, ref)[0]
+
+
+def _dof(s: dict) -> float:
+    """A stored score's degrees of freedom (1 for scores stored before they were recorded)."""
+    d = s.get("dof")
+    return float(d) if finite(d) and d > 0 else 1.0
+
+
+dof_of = _dof
+
+
+# ----------------------------------------------------------------------------- two measurements
+ALPHA = 0.01           # false-alarm rate per score of the regression check and of ``compare``
+ROUNDING_ABS = 1e-5    # float32 rounding of a score: never a change (absolute, in the metric's unit)
+ROUNDING_REL = 1e-4    # ... and relative to the score
+
+
+def rounding(value: float) -> float:
+    """The change a score can show from float32 rounding alone."""
+    return ROUNDING_ABS + ROUNDING_REL * (abs(value) if finite(value) else 0.0)
+
+
+def change(a: float, b: float, sd: float, dof: float, *, n_a: int = 1, alpha: float = ALPHA) -> dict:
+    """Whether ``b`` differs from ``a`` beyond Monte Carlo noise: ``a`` the mean of ``n_a``
+    independent measurements, ``b`` one more, each with standard deviation ``sd`` (estimated on
+    ``dof`` degrees of freedom).  ``|b - a| > t_{1 - alpha/2}(dof) * sd * sqrt(1 + 1/n_a)`` plus
+    the float32 rounding floor (:func:`rounding`) is a change.  Returns ``{"limit", "changed"}``;
+    ``changed`` is None when ``sd`` is unknown (then only a change beyond rounding, with no
+    noise estimate, counts; the caller says so)."""
+    fl = rounding(a)
+    if not (finite(a) and finite(b)):
+        return {"limit": float("nan"), "changed": None}
+    if not finite(sd) or not dof or dof < 1:
+        return {"limit": fl, "changed": None}
+    lim = t_quantile(dof, 1 - alpha / 2) * sd * math.sqrt(1 + 1 / max(n_a, 1)) + fl
+    return {"limit": lim, "changed": abs(b - a) > lim}
+
+
+def pooled_sd(*parts) -> tuple[float, float]:
+    """``(sd, dof)`` of one measurement from several independent estimates of its variance,
+    given as ``(sd_k, dof_k)``: ``sd^2 = sum dof_k sd_k^2 / sum dof_k`` on ``sum dof_k`` degrees of
+    freedom (NaN, 0 when none is finite)."""
+    ok = [(s, d) for s, d in parts if finite(s) and finite(d) and d > 0]
+    if not ok:
+        return float("nan"), 0.0
+    dof = sum(d for _, d in ok)
+    return math.sqrt(sum(d * s * s for s, d in ok) / dof), dof

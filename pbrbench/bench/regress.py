@@ -1,28 +1,30 @@
 """Baselines and regression checks.
 
 A baseline file ``tests/baselines/<quality>.json`` holds, per (task, scene, condition,
-algorithm, metric), the value of a reference run, the direction of improvement and a
-tolerance.  The tolerance is *measured*, not guessed:
+algorithm, metric), what :data:`N_SEEDS` runs with independent *render* seeds (every scene's
+``render.seed`` offset by 0, 1, 2, ...: ``pbrbench run --render-seed``) and job seeds measured:
 
-    the benchmark is run with :data:`N_SEEDS` different seeds (``seed``, ``seed + 1``, ...);
-    ``spread`` = max - min of the metric over those runs;
-    ``tolerance = max(K * spread, ABS_FLOOR + REL_FLOOR * |value|)``.
+* ``value``: the mean over the seeds; ``values``: each seed's value;
+* ``sd`` and ``dof``: the standard deviation of *one* run's score, pooled from the spread over the
+  seeds (``N_SEEDS - 1`` degrees of freedom) and every seed's own jackknife standard error
+  (``G - 1`` each, :mod:`pbrbench.uncertainty`);
+* the direction of improvement, the scene hashes and the algorithm versions.
 
-``K = 3`` leaves room for seeds that were not sampled; the floor (1e-6 absolute plus 0.1 %
-relative) only covers floating-point differences between machines (BLAS, compilers) for
-metrics that do not depend on the seed at all (the ground truth is bit-reproducible: box
-filter and fixed render seed, docs/rendering.md).  The value kept is that of the run with the
-base seed, which the regression suite reproduces.
+A new score ``v`` (with its own jackknife standard error) is checked with
+:func:`pbrbench.uncertainty.change`: its standard deviation pooled once more with the new run's
+own estimate, it *changed* when ``|v - value| > t_{1 - alpha/2}(dof) * sd * sqrt(1 + 1/N_SEEDS)``
+plus the float32 rounding floor, ``alpha`` = :data:`pbrbench.uncertainty.ALPHA` (the false-alarm
+rate per score when only the render seeds changed).  It *regresses* when it moved in the worse
+direction (a value that became NaN counts as a regression), *improved* the other way (a hint to
+run ``pbrbench run --update-baselines``).  The check fails (:attr:`Comparison.ok`) on a
+regression beyond the family-wise limit (``alpha`` / number of scores, Bonferroni) or on more
+per-score regressions than chance gives at ``alpha`` (the 99.9th percentile of a binomial count):
+the per-score flags find a moderate change of one score, the family-wise rule keeps a re-seeded
+run with unchanged code from failing.  Scores whose replicates are bimodal (a discrete choice
+flipped: :func:`pbrbench.uncertainty.unstable`) in the baseline or the run are listed apart as
+``unstable``, never as regressions: a flip is not a code change.
 
-Each entry also records the score's standard error when the baseline was measured
-(``uncertainty``: Monte Carlo noise of the render plus the input-noise seed,
-:mod:`pbrbench.bench.uncertainty`).  A comparison allows at least ``2 * sqrt(u_base^2 + u_new^2)``
-(:data:`pbrbench.uncertainty.SIGNIFICANCE` combined standard errors): a change smaller than the
-noise of the two measurements is not a change.
-
-A score *regresses* when it moved in the worse direction by more than its tolerance (a value
-that became NaN counts as a regression); it *improved* when it moved the other way by more than
-the tolerance (a hint to run ``pbrbench run --update-baselines``).
+``pbrbench compare`` uses the same rule for two runs (``n_a = 1``).
 """
 
 from __future__ import annotations
@@ -33,13 +35,10 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pbrbench.uncertainty import SIGNIFICANCE, combined_se
+from pbrbench.uncertainty import ALPHA, change, dof_of, finite, pooled_sd, unstable
 
-K = 3.0
-ABS_FLOOR = 1e-6
-REL_FLOOR = 1e-3
-N_SEEDS = 3
-FORMAT = 1
+N_SEEDS = 4
+FORMAT = 2
 KEY_FIELDS = ("task", "scene", "condition", "algorithm", "metric")
 
 
@@ -63,40 +62,57 @@ def _unc(s: dict) -> float | None:
     return float(u) if u is not None and math.isfinite(float(u)) else None
 
 
-def tolerance(value: float, spread: float) -> float:
-    floor = ABS_FLOOR + REL_FLOOR * (abs(value) if math.isfinite(value) else 0.0)
-    return max(K * spread, floor)
+def _sig(x: float) -> float:
+    """Rounded to 6 significant digits (the baseline file stays small and diffs stay readable)."""
+    return float(f"{x:.6g}") if finite(x) else None
 
 
-def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list[int], note: str = "") -> dict:
-    """Baselines from the scores of several runs with different seeds; ``runs[0]`` is the reference."""
+def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: str = "") -> dict:
+    """Baselines from the scores of several runs with independent render seeds (module docstring)."""
     if not runs:
         raise ValueError("runs: need the scores of at least one run; pass one list of score dicts per seed")
     by_run = [{score_key(s): s for s in r} for r in runs]
     entries = {}
     for key, s in sorted(by_run[0].items()):
-        vals = [_val(b[key]["value"]) for b in by_run if key in b]
-        finite = [v for v in vals if math.isfinite(v)]
-        spread = (max(finite) - min(finite)) if len(finite) > 1 else 0.0
-        value = _val(s["value"])
+        ss = [b[key] for b in by_run if key in b]
+        vals = [_val(x["value"]) for x in ss]
+        fin = [v for v in vals if math.isfinite(v)]
+        n = len(fin)
+        mean = sum(fin) / n if n else float("nan")
+        parts = [(_unc(x), dof_of(x)) for x in ss if _unc(x) is not None]
+        if n > 1:
+            var = sum((v - mean) ** 2 for v in fin) / (n - 1)
+            parts.append((math.sqrt(var), n - 1))
+        sd, dof = pooled_sd(*parts)
+        flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0)
         entries[key] = {**{f: s.get(f, "") for f in KEY_FIELDS}, "scene_hash": s.get("scene_hash", ""),
                         "algorithm_version": s.get("algorithm_version", ""),
-                        "uncertainty": _unc(s),
-                        "value": value if math.isfinite(value) else None,
-                        "better": s.get("better", "lower"), "spread": spread, "n_seeds": len(vals),
-                        "tolerance": tolerance(value, spread)}
+                        "value": _sig(mean) if n == len(vals) else None, "values": [_sig(v) for v in vals],
+                        "sd": _sig(sd), "dof": round(dof, 2), "n_seeds": len(vals),
+                        "better": s.get("better", "lower"), "unstable": bool(flips)}
     return {"format": FORMAT, "quality": quality, "seeds": list(seeds),
-            "method": (f"tolerance = max({K:g} * spread over {len(runs)} seeds, {ABS_FLOOR:g} + {REL_FLOOR:g} * |value|); "
-                       "spread = max - min over the seeds; value and uncertainty (one standard error) from the first "
-                       f"seed; a comparison allows at least {SIGNIFICANCE:g} * sqrt(u_base^2 + u_new^2)"),
+            "method": (f"value = mean over {len(runs)} runs with independent render seeds; sd = one run's standard "
+                       "deviation pooled from the spread over the seeds and each run's jackknife standard error; a "
+                       "score changed when |new - value| > t(1 - alpha/2, dof) * sd * sqrt(1 + 1/n_seeds) + float32 "
+                       "rounding (pbrbench.uncertainty.change)"),
             "note": note, "entries": entries}
+
+
+def unstable_of(s: dict) -> bool:
+    """Whether a stored score's replicates are bimodal (:func:`pbrbench.uncertainty.unstable`)."""
+    u = s.get("unstable")
+    if u is not None:
+        return bool(u)
+    from pbrbench.uncertainty import replicates_of
+
+    return bool(unstable(replicates_of(s)))
 
 
 def write_baselines(data: dict, path: str | os.PathLike) -> Path:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
     tmp = p.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=1, sort_keys=True) + "\n")
+    tmp.write_text(json.dumps(data, indent=0, sort_keys=True, separators=(",", ":")) + "\n")
     os.replace(tmp, p)
     return p
 
@@ -127,12 +143,12 @@ class Change:
     new: float
     tolerance: float
     better: str
-    kind: str  # "regression" or "improvement"
+    kind: str  # "regression", "improvement" or "unstable"
     scene_changed: bool = False  # the scene's content hash differs from the baseline's
 
     def __str__(self) -> str:
         return (f"{self.kind}: {self.task} / {self.scene} / {self.condition} / {self.algorithm} / {self.metric}: "
-                f"old {self.old:.6g}, new {self.new:.6g}, tolerance {self.tolerance:.3g} ({self.better} is better)"
+                f"old {self.old:.6g}, new {self.new:.6g}, limit {self.tolerance:.3g} ({self.better} is better)"
                 + (" [the scene file changed since the baseline]" if self.scene_changed else ""))
 
 
@@ -144,17 +160,41 @@ class Comparison:
     new: list[str]           # scores without a baseline
     n_checked: int
     version_changed: list[str] = field(default_factory=list)  # algorithms whose version differs
+    unstable: list[Change] = field(default_factory=list)  # beyond the limit, but the replicates are bimodal
+    no_noise: int = 0        # scores compared without a noise estimate (only a change beyond rounding counts)
+    strong: list[Change] = field(default_factory=list)    # regressions beyond the family-wise limit
+
+    @property
+    def expected_false(self) -> float:
+        """Regressions expected by chance alone: ``n_checked * alpha / 2`` (one direction)."""
+        return self.n_checked * ALPHA / 2
+
+    @property
+    def allowed(self) -> int:
+        """The most regressions chance gives (the 99.9th percentile of Binomial(n, alpha / 2))."""
+        if not self.n_checked:
+            return 0
+        from scipy import stats
+
+        return int(stats.binom.ppf(0.999, self.n_checked, ALPHA / 2))
 
     @property
     def ok(self) -> bool:
-        return not self.regressions
+        """No regression beyond the family-wise limit (Bonferroni over every score checked), and
+        no more per-score regressions than chance gives (:attr:`allowed`): a re-seeded run with
+        unchanged code passes with probability about 99 %, a real regression of many scores or a
+        large one of a few fails."""
+        return not self.strong and len(self.regressions) <= self.allowed
 
 
 def compare(scores: list[dict], baselines: dict | None) -> Comparison:
     """Check ``scores`` (dicts with the key fields, value, better) against ``baselines``."""
     entries = (baselines or {}).get("entries", {})
-    regs, imps, new = [], [], []
+    regs, imps, unst, new, strong = [], [], [], [], []
+    no_noise = 0
     seen = set()
+    n_all = max(1, sum(1 for s in scores if score_key(s) in entries))
+    alpha_fw = 0.01 / n_all     # family-wise 1 % over every score checked (Bonferroni)
     changed_versions: dict[str, None] = {}
     for s in scores:
         key = score_key(s)
@@ -166,10 +206,9 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
         if b.get("algorithm_version") and s.get("algorithm_version") and b["algorithm_version"] != s["algorithm_version"]:
             changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {b['algorithm_version']} -> {s['algorithm_version']}")
         old, cur = _val(b["value"]), _val(s["value"])
-        tol = float(b["tolerance"])
-        ub, un = b.get("uncertainty"), _unc(s)
-        if ub is not None and un is not None:
-            tol = max(tol, SIGNIFICANCE * combined_se(ub, un))
+        sd, dof = pooled_sd((_val(b.get("sd")), float(b.get("dof") or 0)), (_unc(s) or float("nan"), dof_of(s)))
+        test = change(old, cur, sd, dof, n_a=int(b.get("n_seeds") or 1))
+        tol = test["limit"]
         better = b.get("better", s.get("better", "lower"))
         kind = None
         if math.isnan(old):
@@ -177,16 +216,23 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
         elif math.isnan(cur):
             kind = "regression"
         else:
-            delta = cur - old if better == "lower" else old - cur  # > 0: worse
-            if delta > tol:
-                kind = "regression"
-            elif delta < -tol:
-                kind = "improvement"
+            moved = test["changed"]
+            if moved is None:
+                no_noise += 1
+                moved = cur != old and abs(cur - old) > tol
+            if moved:
+                delta = cur - old if better == "lower" else old - cur  # > 0: worse
+                kind = "regression" if delta > 0 else "improvement"
+                if b.get("unstable") or unstable_of(s):
+                    kind = "unstable"
         if kind:
             changed = bool(b.get("scene_hash")) and bool(s.get("scene_hash")) and b["scene_hash"] != s["scene_hash"]
             ch = Change(*(str(s.get(f, "")) for f in KEY_FIELDS), old=old, new=cur, tolerance=tol, better=better,
                         kind=kind, scene_changed=changed)
-            (regs if kind == "regression" else imps).append(ch)
+            {"regression": regs, "improvement": imps, "unstable": unst}[kind].append(ch)
+            if kind == "regression" and (math.isnan(cur) or change(old, cur, sd, dof, n_a=int(b.get("n_seeds") or 1),
+                                                                 alpha=alpha_fw)["changed"] is not False):
+                strong.append(ch)
     tasks = {s["task"] for s in scores}
     missing = sorted(k for k, b in entries.items() if b["task"] in tasks and k not in seen)
-    return Comparison(regs, imps, missing, new, len(seen), list(changed_versions))
+    return Comparison(regs, imps, missing, new, len(seen), list(changed_versions), unst, no_noise, strong)

@@ -44,6 +44,7 @@ class RunConfig:
     tasks: list[str] | None = None
     quality: str = "standard"
     seed: int = 0
+    render_seed: int = 0           # added to every scene's render.seed: an independent set of renders
     executor: str = "local"
     scheduler: str | None = None
     workers: int | None = None
@@ -53,12 +54,13 @@ class RunConfig:
     update_baselines: bool = False
     algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
     job_cache: bool = True         # reuse finished jobs whose inputs and code are unchanged
-    uncertainty: bool = True       # score the half-sample replicates (the standard errors)
+    uncertainty: bool = True       # score the delete-one-group replicates (standard errors, bias)
     algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin call; None: in-process
     entry_points: bool = True                     # load the installed plugins (entry points)
 
     def recorded(self) -> dict:
-        return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "executor": self.executor,
+        return {"tasks": self.tasks, "quality": self.quality, "seed": self.seed, "render_seed": self.render_seed,
+                "executor": self.executor,
                 "workers": self.workers, "algorithms": list(self.algorithms),
                 "algorithm_time_limit": self.algorithm_time_limit, "entry_points": self.entry_points}
 
@@ -144,8 +146,11 @@ def comparison_record(comparison) -> dict:
     """A stored form of a :class:`pbrbench.bench.regress.Comparison`."""
     return {"regressions": [asdict(c) for c in comparison.regressions],
             "improvements": [asdict(c) for c in comparison.improvements],
+            "unstable": [asdict(c) for c in comparison.unstable],
             "missing": list(comparison.missing), "new": list(comparison.new),
-            "n_checked": comparison.n_checked}
+            "n_checked": comparison.n_checked, "no_noise": comparison.no_noise,
+            "strong": [asdict(c) for c in comparison.strong], "allowed": comparison.allowed,
+            "expected_false": comparison.expected_false, "ok": comparison.ok}
 
 
 # ----------------------------------------------------------------------------- the run
@@ -170,6 +175,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         run = lifecycle.check_resumable(store, run_id)
         rc = run["config"]
         cfg.tasks, cfg.quality, cfg.seed = rc.get("tasks"), rc.get("quality", cfg.quality), rc.get("seed", cfg.seed)
+        cfg.render_seed = rc.get("render_seed", 0)
         cfg.algorithms = list(rc.get("algorithms") or cfg.algorithms)
         cfg.algorithm_time_limit = rc.get("algorithm_time_limit", cfg.algorithm_time_limit)
         cfg.entry_points = rc.get("entry_points", cfg.entry_points)
@@ -185,7 +191,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
                                    time_limit=cfg.algorithm_time_limit, log=log)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
-                                         scenes=settings.scenes)
+                                         scenes=settings.scenes, render_seed=cfg.render_seed)
     variant = source.resolve_variant()
     info = task_info(tasks, registry)
     from pbrbench.lock import locked_versions
@@ -306,7 +312,8 @@ def _cache(settings):
 
 def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks: dict | None = None, source=None,
                      executor=None, registry=None, log=None) -> Path:
-    """Run :data:`regress.N_SEEDS` - 1 more seeds, measure the spread and rewrite the baseline file."""
+    """Run :data:`regress.N_SEEDS` - 1 more runs, each with its own render seed (every scene's
+    ``render.seed`` offset) and job seed, and rewrite the baseline file from all of them."""
     from pbrbench.bench import regress
     from pbrbench.settings import Settings
 
@@ -317,15 +324,15 @@ def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks:
         raise UserError("--update-baselines: no baselines directory (run from a source checkout or set "
                         "PBRBENCH_BASELINES)")
     runs = [first.scores]
-    seeds = [cfg.seed]
+    seeds = [{"seed": cfg.seed, "render_seed": cfg.render_seed}]
     for i in range(1, regress.N_SEEDS):
-        c = RunConfig(**{**cfg.__dict__, "seed": cfg.seed + i, "resume": None, "report": False,
-                         "update_baselines": False, "check": False})
-        log(f"baseline spread: seed {c.seed} ({i + 1}/{regress.N_SEEDS})")
+        c = RunConfig(**{**cfg.__dict__, "seed": cfg.seed + i, "render_seed": cfg.render_seed + i, "resume": None,
+                         "report": False, "update_baselines": False, "check": False})
+        log(f"baseline spread: render seed +{c.render_seed}, seed {c.seed} ({i + 1}/{regress.N_SEEDS})")
         o = run_benchmark(c, settings=settings, tasks=tasks, source=source, executor=executor, registry=registry,
                           log=log)
         runs.append(o.scores)
-        seeds.append(c.seed)
+        seeds.append({"seed": c.seed, "render_seed": c.render_seed})
     data = regress.build_baselines(runs, quality=cfg.quality, seeds=seeds,
                                    note=f"runs {first.run_id} (+{regress.N_SEEDS - 1} seeds)")
     return regress.write_baselines(data, path)

@@ -25,7 +25,7 @@ class GroundTruthSource:
 
     memory_size = 4     # ground truths kept in memory (consecutive jobs share a scene)
 
-    def __init__(self, quality, cache=None, variant: str | None = None, *, scenes=None):
+    def __init__(self, quality, cache=None, variant: str | None = None, *, scenes=None, render_seed: int = 0):
         from pbrbench.render.cache import RenderCache
         from pbrbench.render.quality import get_quality
 
@@ -33,6 +33,7 @@ class GroundTruthSource:
         self.cache = cache if cache is not None else RenderCache()
         self.variant = variant
         self.scenes = scenes          # scene library directory (None: the setting)
+        self.render_seed = int(render_seed)  # added to every scene's render.seed (independent renders)
         self._memory: OrderedDict = OrderedDict()
 
     # ------------------------------------------------------------------ pickling
@@ -42,7 +43,7 @@ class GroundTruthSource:
         return d
 
     def identity(self) -> str:
-        return f"{type(self).__name__}:{self.cache.root}:{self.quality.name}:{self.variant}"
+        return f"{type(self).__name__}:{self.cache.root}:{self.quality.name}:{self.variant}:{self.render_seed}"
 
     # ------------------------------------------------------------------ variant and specs
     def resolve_variant(self) -> str:
@@ -68,7 +69,7 @@ class GroundTruthSource:
             if len(got) != 1:
                 raise UserError(f"scene {n!r} names a family of {len(got)} scenes; a job needs one scene")
             out[n] = got[0]
-        return out
+        return {n: reseeded(s, self.render_seed) for n, s in out.items()}
 
     def gt_key(self, spec) -> str:
         """The render-cache key of ``spec``'s ground truth (what identifies its content)."""
@@ -109,3 +110,14 @@ class GroundTruthSource:
         self._memory.move_to_end(key)
         while len(self._memory) > self.memory_size:
             self._memory.popitem(last=False)
+
+
+def reseeded(spec, offset: int):
+    """``spec`` with ``render.seed`` increased by ``offset`` (an independent render of the same
+    scene; its content hash changes with the seed, so the render cache keeps both)."""
+    if not offset:
+        return spec
+    from pbrbench.scene.spec import MAX_SEED
+
+    seed = (spec.render.seed + int(offset)) % (MAX_SEED + 1)
+    return spec.model_copy(update={"render": spec.render.model_copy(update={"seed": seed})})

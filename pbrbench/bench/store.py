@@ -11,7 +11,8 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
   comparison (JSON: the regression comparison with the baselines, made once by the run);
 * ``scores``: run, task, scene, scene_hash, condition, algorithm, algorithm_version, metric,
   value, uncertainty (one standard error, NULL when none was estimated) and the replicate values
-  behind it (rep_a, rep_b: the two half-sample renders; rep_noise: a second seed), seconds,
+  behind it (replicates: the delete-one-group values as JSON, rep_noise: a second seed; rep_a,
+  rep_b: the two half-sample values of runs stored before schema 5), dof, bias, unstable, seconds,
   better (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
@@ -49,6 +50,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from pbrbench.errors import DiskError, UserError, disk_error
+from pbrbench.uncertainty import replicates_of
 
 BUSY_TIMEOUT_MS = 60_000
 
@@ -125,13 +127,20 @@ ALTER TABLE runs ADD COLUMN pid INTEGER;
 ALTER TABLE runs ADD COLUMN pid_start TEXT;
 ALTER TABLE runs ADD COLUMN heartbeat TEXT
 """),
+    (5, "jackknife replicates (delete-one-group, JSON), degrees of freedom, Monte Carlo bias, bimodal flag", """
+ALTER TABLE scores ADD COLUMN replicates TEXT;
+ALTER TABLE scores ADD COLUMN dof REAL;
+ALTER TABLE scores ADD COLUMN bias REAL;
+ALTER TABLE scores ADD COLUMN unstable INTEGER
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
 RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version", "drjit_version",
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
-                "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_a", "rep_b", "rep_noise")
+                "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_noise", "replicates", "dof",
+                "bias", "unstable")
 
 
 def _now() -> str:
@@ -199,6 +208,13 @@ def _num(x):
         return None
     x = float(x)
     return None if math.isnan(x) else x
+
+
+def _reps(r) -> str | None:
+    """Replicate values as JSON text (NaN as null), or None."""
+    if r is None:
+        return None
+    return json.dumps([None if not (isinstance(v, (int, float)) and math.isfinite(v)) else float(v) for v in r])
 
 
 _READONLY_HINTS = ("readonly", "read-only", "unable to open", "attempt to write", "disk i/o error", "cannot open")
@@ -491,8 +507,9 @@ class Store:
             rows.append((run_id, d["task"], d["scene"], d.get("scene_hash", "") or "", d.get("condition", "") or "",
                          d["algorithm"], d.get("algorithm_version", "") or "", d["metric"], _num(d["value"]),
                          _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key,
-                         _num(d.get("uncertainty")), _num(d.get("rep_a")), _num(d.get("rep_b")),
-                         _num(d.get("rep_noise"))))
+                         _num(d.get("uncertainty")), _num(d.get("rep_noise")), _reps(d.get("replicates")),
+                         _num(d.get("dof")), _num(d.get("bias")),
+                         None if d.get("unstable") is None else int(bool(d["unstable"]))))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -519,6 +536,13 @@ class Store:
                 d["value"] = float("nan")
             if d.get("uncertainty") is None:
                 d["uncertainty"] = float("nan")
+            d["replicates"] = replicates_of(d)   # older rows: the two half-sample values
+            if d.get("dof") is None:
+                d["dof"] = float(len(d["replicates"]) - 1) if d["replicates"] else 0.0
+            if d.get("bias") is None:
+                d["bias"] = float("nan")
+            if d.get("unstable") is not None:
+                d["unstable"] = bool(d["unstable"])
             out.append(d)
         return out
 
@@ -568,7 +592,7 @@ class Store:
         """Write the run and its scores as JSON (NaN written as null)."""
         data = self.export_run(run_id, status=status)
         for s in data["scores"]:
-            for k in ("value", "uncertainty"):
+            for k in ("value", "uncertainty", "bias", "dof"):
                 if isinstance(s.get(k), float) and not math.isfinite(s[k]):
                     s[k] = None
         p = Path(path)

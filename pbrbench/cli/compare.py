@@ -15,6 +15,8 @@ def register(sub):
 
     p.add_argument("--rel", type=nonnegative_float, default=0.0, metavar="R",
                    help="also call a change unchanged when |b - a| <= R * |a| (default 0)")
+    p.add_argument("--store-b", default=None, metavar="PATH",
+                   help="read RUN_B from this results database (default: the same store as RUN_A)")
     p.add_argument("--html", nargs="?", const="", default=None, metavar="PATH",
                    help="also write a comparison page (default: <out>/compare-<A>-<B>/index.html)")
     from pbrbench.cli.common import add_store
@@ -27,11 +29,15 @@ KEY = ("task", "scene", "condition", "algorithm", "metric")
 
 
 def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0) -> list[dict]:
-    """Rows {key fields, a, b, delta, se, direction} with direction better / worse / same / only-a /
-    only-b.  A change is better or worse only beyond 2 combined standard errors of the two scores
-    (:data:`pbrbench.uncertainty.SIGNIFICANCE`; when both have one) plus ``rel * |a|``; below that
-    it is "same" (within the noise)."""
-    from pbrbench.uncertainty import SIGNIFICANCE, combined_se, finite
+    """Rows {key fields, a, b, delta, se, limit, direction, scene_changed} with direction better /
+    worse / same / only-a / only-b / unstable.  The rule is the regression check's
+    (:func:`pbrbench.uncertainty.change` with one measurement on each side): a change is better or
+    worse only beyond ``t_{1 - alpha/2}(dof) * sd * sqrt(2)``, ``sd`` pooled from the two scores'
+    jackknife standard errors, plus the float32 rounding floor and ``rel * |a|``; below that it is
+    "same" (within the noise).  A pair either of whose replicates are bimodal is "unstable"
+    rather than better or worse.  Both NaN is "same"; NaN on one side only is worse (or better)."""
+    from pbrbench.bench.regress import unstable_of
+    from pbrbench.uncertainty import change, combined_se, dof_of, finite, pooled_sd, rounding
 
     A = {tuple(s[k] for k in KEY): s for s in a_scores}
     B = {tuple(s[k] for k in KEY): s for s in b_scores}
@@ -42,7 +48,7 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
         vb = sb["value"] if sb else float("nan")
         better = (sb or sa)["better"]
         se = combined_se(sa.get("uncertainty"), sb.get("uncertainty")) if sa and sb else float("nan")
-        noise = SIGNIFICANCE * se if finite(se) else 0.0
+        lim = float("nan")
         if sa is None:
             d = "only-b"
         elif sb is None:
@@ -51,11 +57,20 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
             d = "same"
         elif math.isnan(va) or math.isnan(vb):
             d = "better" if math.isnan(va) else "worse"
-        elif abs(vb - va) <= rel * abs(va) + noise or vb == va:
-            d = "same"
         else:
-            d = "better" if (vb < va) == (better == "lower") else "worse"
-        rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, se=se, better=better, direction=d))
+            sd, dof = pooled_sd((sa.get("uncertainty"), dof_of(sa)), (sb.get("uncertainty"), dof_of(sb)))
+            test = change(va, vb, sd, dof, n_a=1)
+            lim = test["limit"] + rel * abs(va)
+            if vb == va or abs(vb - va) <= (lim if finite(lim) else rounding(va) + rel * abs(va)):
+                d = "same"
+            elif unstable_of(sa) or unstable_of(sb):
+                d = "unstable"
+            else:
+                d = "better" if (vb < va) == (better == "lower") else "worse"
+        changed = bool(sa and sb and sa.get("scene_hash") and sb.get("scene_hash")
+                       and sa["scene_hash"] != sb["scene_hash"])
+        rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, se=se, limit=lim, better=better,
+                         direction=d, scene_changed=changed))
     return rows
 
 
@@ -65,22 +80,34 @@ def run(args) -> int:
 
     st = settings(args)
     with open_store(st) as store:
-        a, b = store.resolve_run(args.run_a), store.resolve_run(args.run_b)
-        rows = differences(store.scores(a, task=args.task), store.scores(b, task=args.task), rel=args.rel)
-        runs = (store.get_run(a), store.get_run(b))
+        a = store.resolve_run(args.run_a)
+        a_scores, run_a = store.scores(a, task=args.task), store.get_run(a)
+        if args.store_b is None:
+            b = store.resolve_run(args.run_b)
+            b_scores, run_b = store.scores(b, task=args.task), store.get_run(b)
+    if args.store_b is not None:
+        with open_store(st.with_(store=args.store_b)) as store_b:
+            b = store_b.resolve_run(args.run_b)
+            b_scores, run_b = store_b.scores(b, task=args.task), store_b.get_run(b)
+    rows = differences(a_scores, b_scores, rel=args.rel)
+    runs = (run_a, run_b)
     counts = {}
     for r in rows:
         counts[r["direction"]] = counts.get(r["direction"], 0) + 1
     shown = [r for r in rows if args.all or r["direction"] != "same"]
     print(f"compare {a} -> {b}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    n_hash = len({(r["scene"]) for r in rows if r["scene_changed"]})
+    if n_hash:
+        print(f"note: {n_hash} scene(s) have different content hashes in the two runs (scene file, data or render "
+              "seed changed): their differences include that change")
     if shown:
         cols = ("task", "scene", "condition", "algorithm", "metric")
         w = {c: max([len(c)] + [len(str(r[c])) for r in shown]) for c in cols}
-        print("  ".join(c.ljust(w[c]) for c in cols) + f"  {'a':>10s} {'b':>10s} {'delta':>10s} {'± 2 SE':>9s}  direction")
+        print("  ".join(c.ljust(w[c]) for c in cols) + f"  {'a':>10s} {'b':>10s} {'delta':>10s} {'limit':>9s}  direction")
         for r in shown:
             print("  ".join(str(r[c]).ljust(w[c]) for c in cols)
-                  + f"  {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s} {fmt(2 * r['se']):>9s}  "
-                  f"{r['direction']} ({r['better']} is better)")
+                  + f"  {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s} {fmt(r['limit']):>9s}  "
+                  f"{r['direction']} ({r['better']} is better)" + (" [scene changed]" if r["scene_changed"] else ""))
     if args.html is not None:
         from pathlib import Path
 

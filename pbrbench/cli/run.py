@@ -32,10 +32,14 @@ def register(sub):
                    help="LocalCluster worker processes (one thread each; default: cores / 2)")
     add_store(p)
     p.add_argument("--seed", type=int_at_least(0, (1 << 63) - 1), default=0, help="seed handed to every job (default 0)")
+    p.add_argument("--render-seed", type=int_at_least(0, (1 << 21) - 1), default=0, metavar="N",
+                   help="add N to every scene's render.seed: an independent set of renders of the same scenes "
+                        "(default 0; the baselines are measured over render seeds 0 to 3)")
     p.add_argument("--check", action="store_true",
                    help="compare with the regression baselines (tests/baselines/<quality>.json) and exit 2 on a regression")
     p.add_argument("--update-baselines", action="store_true",
-                   help="rerun with more seeds, measure the spread and rewrite tests/baselines/<quality>.json")
+                   help="rerun with more render seeds and seeds, measure the noise and rewrite "
+                        "tests/baselines/<quality>.json")
     p.add_argument("--resume", default=None, metavar="RUN", help="continue an interrupted run (its id)")
     p.add_argument("--no-report", action="store_true", help="store scores but write no HTML report")
     p.add_argument("--algorithm", action="append", default=[], metavar="TASK=MODULE:FUNCTION[:NAME]",
@@ -111,7 +115,8 @@ def run(args) -> int:
 
     limit = DEFAULT_TIME_LIMIT if limit is None else (None if limit == 0 else limit)
     tasks = [t.replace("-", "_") for t in args.tasks] if args.tasks else None
-    cfg = RunConfig(tasks=tasks, quality=args.quality, seed=args.seed, executor=args.executor,
+    cfg = RunConfig(tasks=tasks, quality=args.quality, seed=args.seed, render_seed=args.render_seed,
+                    executor=args.executor,
                     scheduler=args.scheduler, workers=args.workers, resume=args.resume, report=not args.no_report,
                     check=args.check, update_baselines=args.update_baselines, algorithms=list(args.algorithm),
                     algorithm_time_limit=limit, entry_points=not args.no_plugins)
@@ -131,12 +136,17 @@ def run(args) -> int:
     if comp is not None:
         print(f"baselines: {comp.n_checked} scores checked, {len(comp.regressions)} regression(s), "
               f"{len(comp.improvements)} improvement(s), {len(comp.missing)} missing, {len(comp.new)} new"
+              + (f", {len(comp.unstable)} unstable (bimodal replicates, not counted)" if comp.unstable else "")
+              + (f", {comp.no_noise} without a noise estimate" if comp.no_noise else "")
               + (f", {len(comp.version_changed)} algorithm version(s) changed" if comp.version_changed else ""))
         for ch in comp.regressions[:20]:
             print("  " + str(ch))
         if len(comp.regressions) > 20:
             print(f"  ... and {len(comp.regressions) - 20} more (see the report)")
-        if args.check and (comp.regressions or comp.missing):
+        if comp.regressions:
+            print(f"  ({comp.expected_false:.1f} per-score regression(s) expected by chance, at most {comp.allowed}; "
+                  f"{len(comp.strong)} beyond the family-wise limit)")
+        if args.check and (not comp.ok or comp.missing):
             for k in comp.missing[:10]:
                 print(f"  missing: {k}")
             code = EXIT_REGRESSION

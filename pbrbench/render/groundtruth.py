@@ -1,10 +1,10 @@
 """Render the ground truth of a scene.
 
-Passes (each radiance-like pass is rendered as two half-sample renders ``a`` and ``b`` with
-independent seeds; the image is their mean ``(a + b) / 2`` and the signed half-difference
-``X_delta = (a - b) / 2`` is kept, so both halves can be rebuilt, ``a = X + X_delta`` and
-``b = X - X_delta`` (:meth:`GroundTruth.replicate`), and ``X_sd = |X_delta|`` is the per-pixel
-standard deviation of the image estimate):
+Passes (each radiance-like pass is rendered as ``G`` sample groups with independent seeds,
+``G`` from the quality profile; the image is their mean and the delete-one-group deviations
+``X_jk<i>`` (the mean of every group but ``i``, minus the mean) are kept, so each delete-one-group
+ground truth can be rebuilt, ``X_(i) = X + X_jk<i>`` (:meth:`GroundTruth.replicate`), and ``X_sd``
+is the per-pixel jackknife standard deviation of the image estimate):
 
 * ``radiance``: full global illumination (``max_depth`` of the scene, -1 = unlimited);
 * ``direct``: ``max_depth = 2``; ``indirect = radiance - direct`` (same seeds, so in LLVM the two
@@ -19,7 +19,7 @@ standard deviation of the image estimate):
   geometry and not on a boundary between two objects, where the AOVs are mixtures),
   ``object_id`` (0 background, k + 1 for shape k; from a one-sample pass so ids are not averaged).
 
-``*_sd`` (derived from ``*_delta`` on access) is the per-pixel standard deviation of the
+``*_sd`` (derived from the deviations on access) is the per-pixel standard deviation of the
 corresponding image estimate.  Box reconstruction filter, float32 everywhere, seeds from the
 scene's ``render.seed``.
 """
@@ -40,19 +40,63 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 7  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 8  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
-AOV_REPLICATED = ("albedo", "normals", "depth")  # AOVs whose half-sample deltas are kept
+AOV_REPLICATED = ("albedo", "normals", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
+SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)
+SEED_MOD = 1 << 32   # Mitsuba's seeds are 32-bit
+JK = "_jk"         # ``<name>_jk<i>``: the delete-one-group deviation of ``<name>`` for group ``i``
+
+
+def pass_seed(seed: int, offset: int, k: int) -> int:
+    """The 32-bit render seed of sample group (or extra render) ``k`` of the pass at ``offset``
+    of a scene whose ``render.seed`` is ``seed``."""
+    return (SEED_STRIDE * (seed * 1000 + offset) + k) % SEED_MOD
 
 
 def is_radiance_like(name: str) -> bool:
-    """Whether ``name`` is a rendered (Monte Carlo) pass that has a ``<name>_delta``."""
+    """Whether ``name`` is a rendered (Monte Carlo) pass that has delete-one-group deviations."""
     return name in RADIANCE_LIKE or (name.startswith("light") and name.endswith((".radiance", ".direct")))
+
+
+def loo_deviations(groups) -> tuple[np.ndarray, np.ndarray]:
+    """``(mean, jk)`` of ``G`` equally weighted sample groups: ``mean = sum_g X_g / G`` and the
+    delete-one-group deviations ``jk[i] = mean_{g != i} X_g - mean = -(X_i - mean) / (G - 1)``."""
+    x = np.stack([np.asarray(g, np.float64) for g in groups])
+    G = x.shape[0]
+    if G < 2:
+        raise ValueError(f"groups: at least 2 sample groups are needed for a standard error, got {G}")
+    mean = x.mean(0)
+    return mean, -(x - mean) / (G - 1)
+
+
+def jackknife_sd(jk) -> np.ndarray:
+    """Per-pixel standard deviation of the full-sample mean from its delete-one-group deviations:
+    ``sqrt((G - 1) / G * sum_i jk_i^2)`` (the jackknife variance; for a pass that is a mean of
+    ``G`` groups it equals the sample variance of the groups over ``G``)."""
+    jk = np.asarray(jk, np.float64)
+    G = jk.shape[0]
+    return np.sqrt((G - 1) / G * np.sum(jk * jk, axis=0))
+
+
+def unoccluded_fraction(direct: np.ndarray, unoccluded: np.ndarray) -> np.ndarray:
+    """``direct / direct-without-occluders`` (grey, in [0, 1]; 1 where the unoccluded pass is dark)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lum_o = np.asarray(direct, np.float64).mean(-1)
+        lum_u = np.asarray(unoccluded, np.float64).mean(-1)
+        frac = np.where(lum_u > 1e-6 * max(lum_u.max(), 1e-30), lum_o / lum_u, 1.0)
+    return np.clip(frac, 0, 1).astype(np.float32)
 
 
 @dataclass
 class GroundTruth:
-    """Named float32 arrays plus metadata (scene hash, variant, spp, seed, versions, timings, noise)."""
+    """Named float32 arrays plus metadata (scene hash, variant, spp, seed, versions, timings, noise).
+
+    Every Monte Carlo array ``X`` (rendered passes, and the footprint-averaged AOVs albedo,
+    normals, depth, coverage and the pure mask) comes with ``G = meta["groups"]`` delete-one-group
+    deviations ``X_jk0 .. X_jk{G-1}``: ``X + X_jk{i}`` is ``X`` computed from every sample group
+    but ``i`` (:meth:`replicate`), and ``X_sd`` (derived on access) the per-pixel standard
+    deviation of ``X``'s estimate (:func:`jackknife_sd`)."""
 
     arrays: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
@@ -61,40 +105,66 @@ class GroundTruth:
         try:
             return self.arrays[name]
         except KeyError:
-            if name.endswith("_sd") and f"{name[:-3]}_delta" in self.arrays:
-                return np.abs(self.arrays[f"{name[:-3]}_delta"])
+            if name.endswith("_sd") and f"{name[:-3]}{JK}0" in self.arrays:
+                return jackknife_sd(self.jk(name[:-3])).astype(np.float32)
             raise KeyError(f"ground truth has no {name!r}; it has {', '.join(sorted(self.arrays))}") from None
 
     def __contains__(self, name: str) -> bool:
-        return name in self.arrays or (name.endswith("_sd") and f"{name[:-3]}_delta" in self.arrays)
+        return name in self.arrays or (name.endswith("_sd") and f"{name[:-3]}{JK}0" in self.arrays)
+
+    @property
+    def groups(self) -> int:
+        """The number of independent sample groups (0 when the deviations were not kept)."""
+        g = 0
+        while f"radiance{JK}{g}" in self.arrays:
+            g += 1
+        return g
+
+    def jk(self, name: str) -> np.ndarray:
+        """``(G, ...)`` delete-one-group deviations of ``name``."""
+        return np.stack([self.arrays[f"{name}{JK}{i}"] for i in range(self.groups)])
+
+    def sd_of(self, name: str, fn) -> np.ndarray:
+        """Per-pixel jackknife standard deviation of ``fn(X)`` (e.g. a grey conversion) for the
+        array ``name``: ``sqrt((G - 1) / G * sum_i (fn(X_(i)) - mean_j fn(X_(j)))^2)``."""
+        x = self.arrays[name]
+        loo = np.stack([np.asarray(fn(x + self.arrays[f"{name}{JK}{i}"]), np.float64) for i in range(self.groups)])
+        G = loo.shape[0]
+        return np.sqrt((G - 1) / G * np.sum((loo - loo.mean(0)) ** 2, axis=0))
+
+    @property
+    def base_names(self) -> list[str]:
+        """The arrays proper (without their deviations)."""
+        return [n for n in self.arrays if JK not in n]
 
     @property
     def has_replicates(self) -> bool:
-        """Whether the half-sample renders can be rebuilt (every rendered pass has its delta)."""
+        """Whether the delete-one-group ground truths can be built (every rendered pass has its
+        deviations, at least 2 groups)."""
         passes = [n for n in self.arrays if is_radiance_like(n)]
-        return bool(passes) and all(f"{n}_delta" in self.arrays for n in passes)
+        G = self.groups
+        return bool(passes) and G >= 2 and all(f"{n}{JK}{G - 1}" in self.arrays for n in passes)
 
-    def replicate(self, half: int) -> GroundTruth:
-        """The ground truth of one half-sample render (``half`` 0 or 1): every rendered pass and the
-        Monte Carlo AOVs (albedo, normals, depth) are replaced by ``X + X_delta`` (half 0) or
-        ``X - X_delta`` (half 1), normals renormalised, ``indirect`` rebuilt from the half's
-        radiance and direct; the masks, ids and metadata are shared.  Its arrays have twice the
-        variance of the full ground truth's."""
-        if half not in (0, 1):
-            raise ValueError(f"half: 0 or 1, got {half!r}")
-        sign = 1.0 if half == 0 else -1.0
-        arrays = dict(self.arrays)
-        for n, a in self.arrays.items():
-            d = self.arrays.get(f"{n}_delta")
-            if d is not None and (is_radiance_like(n) or n in AOV_REPLICATED):
-                arrays[n] = (a + sign * d).astype(np.float32)
-        if "normals_delta" in self.arrays:
-            nrm = arrays["normals"].astype(np.float64)
-            ln = np.linalg.norm(nrm, axis=-1, keepdims=True)
-            arrays["normals"] = np.where(ln > 1e-8, nrm / np.where(ln > 1e-8, ln, 1.0), 0.0).astype(np.float32)
+    def replicate(self, group: int) -> GroundTruth:
+        """The ground truth computed from every sample group but ``group`` (``0 .. G-1``): every
+        array with deviations (rendered passes, albedo, normals, depth, coverage, the pure mask) is
+        replaced by ``X + X_jk{group}``; ``indirect`` and ``unoccluded_fraction`` are rebuilt from
+        the replicate's own passes; ids, position and metadata are shared.  Its arrays have
+        ``G / (G - 1)`` times the variance of the full ground truth's."""
+        G = self.groups
+        if not (isinstance(group, (int, np.integer)) and 0 <= group < G):
+            raise ValueError(f"group: an integer in 0..{G - 1} (the ground truth has {G} sample groups), got {group!r}")
+        arrays = {}
+        for n in self.base_names:
+            d = self.arrays.get(f"{n}{JK}{group}")
+            arrays[n] = self.arrays[n] if d is None else (self.arrays[n] + d).astype(np.float32)
+        if "mask" in arrays:
+            arrays["mask"] = (arrays["mask"] > 0.5).astype(np.float32)
         if "radiance" in arrays and "direct" in arrays and "indirect" in self.arrays:
             arrays["indirect"] = arrays["radiance"] - arrays["direct"]
-        return GroundTruth(arrays, dict(self.meta, replicate=half))
+        if "unoccluded_fraction" in arrays and "direct_unoccluded" in arrays:
+            arrays["unoccluded_fraction"] = unoccluded_fraction(arrays["direct"], arrays["direct_unoccluded"])
+        return GroundTruth(arrays, dict(self.meta, replicate=int(group)))
 
     @property
     def n_lights(self) -> int:
@@ -136,6 +206,7 @@ class _Renderer:
         self.spp = q.spp(spec.render.spp)
         self.seed = spec.render.seed
         self.target = q.noise_target          # (median, rms) relative sd of the passes, or None
+        self.groups = q.groups                # independent sample groups of every pass
         self.max_spp = int(round(q.max_spp_factor * self.spp))
         self.mask = None                      # pure pixels (from the AOVs, rendered first)
         self.spp_per_pass: dict[str, int] = {}
@@ -147,78 +218,84 @@ class _Renderer:
         if self.progress is not None:
             self.progress(what)
 
-    def render_pair(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
-        """Mean ``(a + b) / 2`` and signed half-difference ``(a - b) / 2`` of two half-sample
-        renders with independent seeds (``|(a - b) / 2|`` is the sd of the mean, one-sample).
+    def render_groups(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
+        """Mean of ``G`` independent sample groups (:attr:`pbrbench.render.quality.Quality.groups`,
+        each with ``spp / G`` samples and its own seed) and the delete-one-group deviations
+        ``jk`` of shape ``(G, H, W, 3)``: ``X + jk[i]`` is the mean of every group but ``i``
+        (:func:`loo_deviations`).
 
-        With a noise target (:attr:`pbrbench.render.quality.Quality.noise_target`) the first pair,
-        at the scene's samples per pixel, is the pilot: where its relative noise over the lit pure
-        pixels (:func:`pass_noise`) is above the target, a second pair with the missing samples
-        (noise ~ 1/sqrt(spp)), at most ``max_spp`` in all, is rendered with its own seeds and
-        merged into the two halves, weighted by their samples, so no sample is wasted."""
+        With a noise target (:attr:`pbrbench.render.quality.Quality.noise_target`) the first
+        groups, at the scene's samples per pixel, are the pilot: where their relative noise over
+        the lit pure pixels (:func:`pass_noise`) is above the target, every group gets the missing
+        samples (noise ~ 1/sqrt(spp)), at most ``max_spp`` in all, rendered with seeds of its own
+        and merged into the group weighted by samples, so no sample is wasted."""
         mi = self.mi
-        half = max(1, self.spp // 2)
+        G = self.groups
+        per = max(1, self.spp // G)
         # samplers such as multijitter round the count up (with a warning): use what they take
         level = mi.log_level()
         mi.set_log_level(mi.LogLevel.Error)
         try:
-            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, **kw), optimize=False)
-            half = int(scene.sensors()[0].sampler().sample_count())
-            base = 2 * (self.seed * 1000 + seed_offset)
-            a = np.array(mi.render(scene, seed=base, spp=half), dtype=np.float64)[..., :3]
-            b = np.array(mi.render(scene, seed=base + 1, spp=half), dtype=np.float64)[..., :3]
-            n = half
+            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, per, **kw), optimize=False)
+            per = int(scene.sensors()[0].sampler().sample_count())
+            groups = [np.array(mi.render(scene, seed=pass_seed(self.seed, seed_offset, g), spp=per),
+                               dtype=np.float64)[..., :3]
+                      for g in range(G)]
+            n = per
             if self.target is not None and self.mask is not None:
-                med, rms = pass_noise(0.5 * (a + b), 0.5 * (a - b), self.mask)
+                mean, jk = loo_deviations(groups)
+                med, rms = pass_noise(mean, jackknife_sd(jk), self.mask)
                 need = max((med / self.target[0]) ** 2, (rms / self.target[1]) ** 2)
-                total = min(int(math.ceil(need * n)), max(self.max_spp // 2, n))
+                total = min(int(math.ceil(need * n)), max(self.max_spp // G, n))
                 extra = total - n
                 if extra >= max(1, n // 4):
-                    top = base + 2_000_003   # seeds no other pass uses
-                    a2 = np.array(mi.render(scene, seed=top, spp=extra), dtype=np.float64)[..., :3]
-                    b2 = np.array(mi.render(scene, seed=top + 1, spp=extra), dtype=np.float64)[..., :3]
-                    a = (n * a + extra * a2) / (n + extra)
-                    b = (n * b + extra * b2) / (n + extra)
+                    top = 4_000_037   # seeds no other pass uses
+                    groups = [(n * a + extra * np.array(mi.render(scene, seed=pass_seed(self.seed, seed_offset, top + g),
+                                                                  spp=extra),
+                                                          dtype=np.float64)[..., :3]) / (n + extra)
+                              for g, a in enumerate(groups)]
                     n += extra
         finally:
             mi.set_log_level(level)
-        self.spp_used = 2 * half
-        self.spp_per_pass[what] = 2 * n
+        self.spp_used = G * per
+        self.spp_per_pass[what] = G * n
         del scene
         gc.collect()
         self._tick(what)
-        return (0.5 * (a + b)).astype(np.float32), (0.5 * (a - b)).astype(np.float32)
+        mean, jk = loo_deviations(groups)
+        return mean.astype(np.float32), jk.astype(np.float32)
 
     def aovs(self) -> dict[str, np.ndarray]:
-        """The AOVs (albedo, normals, position, depth, coverage) as the mean of two half-sample
-        renders with their own seeds, with the signed half-differences of albedo, normals and
-        depth (footprint averages are Monte Carlo estimates too: at a curved or tilted surface
-        they move with the samples); plus the object ids and the pure-pixel mask."""
+        """The AOVs (albedo, normals, position, depth, coverage) as the mean of ``G`` sample
+        groups with their own seeds, with the delete-one-group deviations of albedo, normals,
+        depth, coverage and the pure mask (footprint averages are Monte Carlo estimates too: at a
+        curved or tilted surface, and at a silhouette, they move with the samples); plus the
+        object ids and the pure-pixel mask."""
         mi = self.mi
+        G = self.groups
         integ = {"type": "aov", "aovs": "alb:albedo,nn:sh_normal,pp:position,si:shape_index",
                  "cov": {"type": "path", "max_depth": 1}}
-        half = max(1, self.spp // 2)
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, half, integrator=integ, drop_occluders=False), optimize=False)
-        half = int(scene.sensors()[0].sampler().sample_count())
+        per = max(1, self.spp // G)
+        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, per, integrator=integ, drop_occluders=False), optimize=False)
+        per = int(scene.sensors()[0].sampler().sample_count())
         M = np.array(scene.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)
-        base = 2 * (self.seed * 1000 + 500)
         films = []
-        for k in range(2):
-            mi.render(scene, seed=base + k, spp=half)
+        for k in range(G):
+            mi.render(scene, seed=pass_seed(self.seed, 500, k), spp=per)
             films.append(_film_arrays(scene))
         obj_avg = [self._object_ids(scene, f["si.I"]) for f in films]  # footprint-averaged: mixed pixels -> -1
         del scene
         if all(float(f["cov.A"].max()) == 0.0 for f in films) and any(float(f["alb.R"].max()) > 0 for f in films):
             # scalar variants leave the nested integrator's alpha at 0: measure the covered fraction of
             # each pixel as the albedo AOV of the same samples with every surface white instead
-            d = scene_dict(mi, self.spec, self.res, half, integrator={"type": "aov", "aovs": "w:albedo"},
+            d = scene_dict(mi, self.spec, self.res, per, integrator={"type": "aov", "aovs": "w:albedo"},
                            drop_occluders=False)
             for v in d.values():
                 if isinstance(v, dict) and "bsdf" in v:
                     v["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
             white = mi.load_dict(d, optimize=False)
-            for k in range(2):
-                mi.render(white, seed=base + k, spp=half)
+            for k in range(G):
+                mi.render(white, seed=pass_seed(self.seed, 500, k), spp=per)
                 films[k]["cov.A"] = _film_arrays(white)["w.R"]
             del white
         R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)  # columns: left, up, view direction
@@ -240,13 +317,12 @@ class _Renderer:
             depth[~covered] = 0
             return cov, alb, n_cam, pos, depth
 
-        full = {k: 0.5 * (films[0][k].astype(np.float64) + films[1][k].astype(np.float64)) for k in films[0]}
-        cov, alb, n_cam, pos, depth = derived(full)
-        _, alb_a, n_a, _, d_a = derived(films[0])
-        _, alb_b, n_b, _, d_b = derived(films[1])
-        obj_avg = np.where(obj_avg[0] == obj_avg[1], obj_avg[0], -1)
-        deltas = {"albedo_delta": 0.5 * (alb_a - alb_b), "normals_delta": 0.5 * (n_a - n_b),
-                  "depth_delta": 0.5 * (d_a - d_b)}
+        def mean_of(fs):
+            return {k: sum(f[k].astype(np.float64) for f in fs) / len(fs) for k in fs[0]}
+
+        cov, alb, n_cam, pos, depth = derived(mean_of(films))
+        loo = [derived(mean_of(films[:i] + films[i + 1:])) for i in range(G)]
+        obj_avg = np.where(np.all([o == obj_avg[0] for o in obj_avg], axis=0), obj_avg[0], -1)
         # object ids from a one-sample pass (ids must not be averaged across an edge)
         integ1 = {"type": "aov", "aovs": "si:shape_index"}
         scene = mi.load_dict(scene_dict(mi, self.spec, self.res, 1, integrator=integ1, sampler="independent"), optimize=False)
@@ -255,20 +331,24 @@ class _Renderer:
         del scene
         gc.collect()
         # pure pixels: fully covered and not on a boundary between two objects (there the
-        # footprint-averaged AOVs are mixtures)
+        # footprint-averaged AOVs are mixtures), and the footprint-averaged index equals the
+        # point-sampled one (no mixture inside the pixel); each replicate has its own coverage
         pad = np.pad(obj, 1, mode="edge")
         same = np.ones(obj.shape, bool)
         for di, dj in ((0, 1), (2, 1), (1, 0), (1, 2)):
             same &= pad[di:di + obj.shape[0], dj:dj + obj.shape[1]] == obj
-        # and the footprint-averaged index equals the point-sampled one (no mixture inside the pixel)
-        pure = (cov > 0.999) & same & (obj > 0) & (obj_avg == obj)
+        fixed = same & (obj > 0) & (obj_avg == obj)
+        pure = (cov > 0.999) & fixed
         self._tick("aovs")
         out = {"albedo": alb.astype(np.float32), "normals": n_cam.astype(np.float32),
                "position": pos.astype(np.float32), "depth": depth.astype(np.float32),
                "coverage": cov.astype(np.float32), "mask": pure.astype(np.float32),
                "object_id": obj}
-        out.update({k: np.where(pure[..., None] if v.ndim == 3 else pure, v, 0.0).astype(np.float32)
-                    for k, v in deltas.items()})
+        for i, (c_i, a_i, n_i, _, d_i) in enumerate(loo):
+            pure_i = (c_i > 0.999) & fixed
+            for name, full, rep in (("albedo", alb, a_i), ("normals", n_cam, n_i), ("depth", depth, d_i),
+                                    ("coverage", cov, c_i), ("mask", pure.astype(np.float64), pure_i.astype(np.float64))):
+                out[f"{name}{JK}{i}"] = (rep - full).astype(np.float32)
         return out
 
     def _object_ids(self, scene, si: np.ndarray) -> np.ndarray:
@@ -293,13 +373,13 @@ class _Renderer:
         return out
 
 
-def pass_noise(image: np.ndarray, delta: np.ndarray, mask: np.ndarray | None = None, lit: float = 0.05) -> tuple[float, float]:
-    """Median and RMS relative sd ``|delta| / image`` (channel means) over the *lit pure* pixels:
+def pass_noise(image: np.ndarray, sd: np.ndarray, mask: np.ndarray | None = None, lit: float = 0.05) -> tuple[float, float]:
+    """Median and RMS relative sd ``sd / image`` (channel means) over the *lit pure* pixels:
     inside ``mask`` (the ground truth's pure pixels) and above ``lit`` of the pass's peak there —
     the pixels the tasks measure (shadowed and silhouette pixels are left to the tasks' own
     domains).  Without a mask (or no lit pure pixel) every pixel above ``lit`` of the peak counts."""
     lum = np.asarray(image, np.float64).mean(-1)
-    sd = np.abs(np.asarray(delta, np.float64)).mean(-1)
+    sd = np.abs(np.asarray(sd, np.float64)).mean(-1)
     m = np.asarray(mask, bool) if mask is not None else np.ones(lum.shape, bool)
     if not m.any() or lum[m].max() <= 0:
         m = np.ones(lum.shape, bool)
@@ -310,33 +390,35 @@ def pass_noise(image: np.ndarray, delta: np.ndarray, mask: np.ndarray | None = N
     return float(np.median(rel)), float(np.sqrt(np.mean(rel ** 2)))
 
 
-def relative_noise(image: np.ndarray, delta: np.ndarray) -> np.ndarray:
-    """Per-pixel relative sd ``|delta| / image`` (channel means) over the pixels above 1e-3 of
+def relative_noise(image: np.ndarray, sd: np.ndarray) -> np.ndarray:
+    """Per-pixel relative sd ``sd / image`` (channel means) over the pixels above 1e-3 of
     the image's peak (the lit pixels)."""
     lum = np.asarray(image, np.float64).mean(-1)
-    sd = np.abs(np.asarray(delta, np.float64)).mean(-1)
+    sd = np.abs(np.asarray(sd, np.float64)).mean(-1)
     sig = lum > 1e-3 * max(float(lum.max()), 1e-30)
     return sd[sig] / lum[sig] if sig.any() else np.zeros(1)
 
 
-def noise_summary(arrays: dict, spec) -> dict:
+def noise_summary(arrays: dict, jks: dict, spec) -> dict:
     """Median and RMS relative sd of the radiance, and of the passes the tasks consume (the
-    per-light passes when the scene has a light set, else radiance and direct)."""
-    rel = relative_noise(arrays["radiance"], arrays["radiance_delta"])
+    per-light passes when the scene has a light set, else radiance and direct); ``jks``: each
+    pass's delete-one-group deviations."""
+    rel = relative_noise(arrays["radiance"], jackknife_sd(jks["radiance"]))
     if spec.light_set:
         names = [f"light{k:02d}.{kind}" for k in range(len(spec.light_set)) for kind in ("direct", "radiance")]
     else:
         names = ["radiance", "direct"]
     mask = arrays["mask"] > 0.5 if "mask" in arrays else None
-    lit = np.array([pass_noise(arrays[n], arrays[f"{n}_delta"], mask) for n in names])
+    lit = np.array([pass_noise(arrays[n], jackknife_sd(jks[n]), mask) for n in names])
+    G = jks["radiance"].shape[0]
     return {
         "radiance_rel_sd_rms": float(np.sqrt(np.mean(rel ** 2))),
         "radiance_rel_sd_median": float(np.median(rel)),
         "inputs_rel_sd_median": float(lit[:, 0].max()),
         "inputs_rel_sd_rms": float(lit[:, 1].max()),
         "inputs": names,
-        "note": "per-pixel sd of the image estimate from two half-sample renders (|a-b|/2), relative to the "
-                "pixel value; radiance: pixels above 1e-3 of the peak; inputs: the passes the tasks consume, "
+        "note": f"per-pixel sd of the image estimate from {G} independent sample groups (jackknife), relative "
+                "to the pixel value; radiance: pixels above 1e-3 of the peak; inputs: the passes the tasks consume, "
                 "over their lit pure pixels (mask, above 5 % of the pass's peak), the worst pass",
     }
 
@@ -361,35 +443,35 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
     # a direct-only scene (max_depth 2: e.g. an area-source twin, which isolates the source's
     # effect) renders each pass once: its radiance is its direct light
     direct_only = md == 2
-    arrays["radiance"], arrays["radiance_delta"] = r.render_pair("radiance", 0, integrator=path)
+    jks: dict[str, np.ndarray] = {}
+
+    def put(name, mean_jk):
+        arrays[name], jks[name] = mean_jk
+
+    put("radiance", r.render_groups("radiance", 0, integrator=path))
     if direct_only:
-        arrays["direct"], arrays["direct_delta"] = arrays["radiance"], arrays["radiance_delta"]
+        arrays["direct"], jks["direct"] = arrays["radiance"], jks["radiance"]
         r._tick("direct (= radiance)")
     else:
-        arrays["direct"], arrays["direct_delta"] = r.render_pair("direct", 0, integrator=direct)
+        put("direct", r.render_groups("direct", 0, integrator=direct))
     arrays["indirect"] = arrays["radiance"] - arrays["direct"]
     for k, light in enumerate(spec.light_set):
         n = f"light{k:02d}"
-        arrays[f"{n}.radiance"], arrays[f"{n}.radiance_delta"] = r.render_pair(
-            f"light {k}", 10 + k, integrator=path, lights=[light])
+        put(f"{n}.radiance", r.render_groups(f"light {k}", 10 + k, integrator=path, lights=[light]))
         if direct_only:
-            arrays[f"{n}.direct"], arrays[f"{n}.direct_delta"] = arrays[f"{n}.radiance"], arrays[f"{n}.radiance_delta"]
+            arrays[f"{n}.direct"], jks[f"{n}.direct"] = arrays[f"{n}.radiance"], jks[f"{n}.radiance"]
             r._tick(f"light {k} direct (= radiance)")
         else:
-            arrays[f"{n}.direct"], arrays[f"{n}.direct_delta"] = r.render_pair(
-                f"light {k} direct", 10 + k, integrator=direct, lights=[light])
+            put(f"{n}.direct", r.render_groups(f"light {k} direct", 10 + k, integrator=direct, lights=[light]))
     if spec.has_occluders:
-        unocc, arrays["direct_unoccluded_delta"] = r.render_pair("unoccluded", 0, integrator=direct,
-                                                                 drop_occluders=True)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            lum_o = arrays["direct"].mean(-1)
-            lum_u = unocc.mean(-1)
-            frac = np.where(lum_u > 1e-6 * max(lum_u.max(), 1e-30), lum_o / lum_u, 1.0)
-        arrays["unoccluded_fraction"] = np.clip(frac, 0, 1).astype(np.float32)
-        arrays["direct_unoccluded"] = unocc
+        put("direct_unoccluded", r.render_groups("unoccluded", 0, integrator=direct, drop_occluders=True))
+        arrays["unoccluded_fraction"] = unoccluded_fraction(arrays["direct"], arrays["direct_unoccluded"])
     if spec.has_glossy:
-        arrays["diffuse_only"], arrays["diffuse_only_delta"] = r.render_pair(
-            "diffuse-only twin", 0, integrator=path, diffuse_only=True)
+        put("diffuse_only", r.render_groups("diffuse-only twin", 0, integrator=path, diffuse_only=True))
+    noise = noise_summary(arrays, jks, spec)
+    for name, jk in jks.items():
+        for i in range(jk.shape[0]):
+            arrays[f"{name}{JK}{i}"] = jk[i]
 
     choice = current_choice()
     meta = {
@@ -412,6 +494,7 @@ def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant
         "wall_s": time.perf_counter() - r.t0,
         "cpu_s": time.process_time() - r.cpu0,
         "n_light_set": len(spec.light_set),
-        "noise": noise_summary(arrays, spec),
+        "groups": r.groups,
+        "noise": noise,
     }
     return GroundTruth({k: np.ascontiguousarray(v, dtype=np.float32) for k, v in arrays.items()}, meta)

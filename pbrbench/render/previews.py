@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from pbrbench.io import ensure_dir, write_colormap_png, write_normals_png, write_preview
-from pbrbench.render.groundtruth import GroundTruth
+from pbrbench.render.groundtruth import JK, GroundTruth
 
 RADIANCE_LIKE = ("radiance", "direct", "indirect", "diffuse_only", "direct_unoccluded")
 
@@ -22,16 +22,20 @@ def write_previews(gt: GroundTruth, out: str | Path) -> list[Path]:
     mask = gt.arrays["coverage"] > 0
     for name, a in sorted(gt.arrays.items()):
         p = out / f"{name}.png"
-        if name.endswith("_delta"):
-            p = out / f"{name[:-6]}_sd.png"
-            base = gt.arrays[name[:-6]]
-            if base.ndim == 3 and name[:-6] != "normals":
+        if JK in name:
+            if not name.endswith(f"{JK}0") or name.startswith("mask"):
+                continue   # one map of the jackknife sd per array (written with the first deviation)
+            stem = name[: -len(JK) - 1]
+            p = out / f"{stem}_sd.png"
+            base = gt.arrays[stem]
+            sd = gt[f"{stem}_sd"]
+            if base.ndim == 3 and stem != "normals":
                 b = base.mean(-1)
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    rel = np.where(b > 1e-3 * b.max(), np.abs(a).mean(-1) / b, np.nan)
+                    rel = np.where(b > 1e-3 * b.max(), sd.mean(-1) / b, np.nan)
                 write_colormap_png(p, rel, label="relative sd (Monte Carlo noise)", cmap="magma")
             else:
-                sd = np.linalg.norm(a, axis=-1) if a.ndim == 3 else np.abs(a)
+                sd = np.linalg.norm(sd, axis=-1) if sd.ndim == 3 else sd
                 write_colormap_png(p, sd, label="sd (Monte Carlo noise)", cmap="magma", mask=mask)
         elif name in RADIANCE_LIKE or name.startswith("light"):
             write_preview(p, np.maximum(a, 0), exposure=exposure)

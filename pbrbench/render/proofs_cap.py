@@ -120,7 +120,7 @@ def cap_case(spec, quality: str, cache, *, photometric_stereo=None) -> dict:
     closed = np.stack([cap_radiosity(pts, rho=rho, half_angle_deg=alpha, direction=S[k], irradiance=E0[k]) / np.pi
                        for k in range(K)])
     U = np.array([rho * f * cap_mean_direct(rho, alpha, S[k], E0[k]) / (1 - rho * f) for k in range(K)]) / np.pi
-    cells = [Cells.of(ids, interior, gt[f"light{k:02d}.radiance"], gt[f"light{k:02d}.radiance_delta"], len(ring))
+    cells = [Cells.of(ids, interior, gt[f"light{k:02d}.radiance"], gt.sd_of(f"light{k:02d}.radiance", _grey), len(ring))
              for k in range(K)]
     out = {"rings": CMP_RINGS[W >= 64], "spec": spec, "rho": rho, "alpha": alpha, "beta": beta, "delta": delta, "f": f, "cells": cells,
            "closed": [c.mean(closed[k]) for k, c in enumerate(cells)], "U": U, "interior": interior,
@@ -156,7 +156,7 @@ def _photometric_stereo(gt, lights, interior, ids, n_cells, method, rho, beta, N
     standard errors, and the fitted ``beta`` with its standard error."""
     K = len(lights)
     images = np.stack([_grey(gt[f"light{k:02d}.radiance"]) for k in range(K)])
-    sd = np.stack([np.abs(_grey(gt[f"light{k:02d}.radiance_delta"])) for k in range(K)])
+    sd = np.stack([gt.sd_of(f"light{k:02d}.radiance", _grey) for k in range(K)])
     res = method(images, lights, mask=interior)
     n = np.asarray(getattr(res, "normals", None) if not isinstance(res, dict) else res["normals"], float)
     alb = np.asarray(getattr(res, "albedo", None) if not isinstance(res, dict) else res["albedo"], float)

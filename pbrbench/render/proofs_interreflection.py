@@ -349,7 +349,7 @@ def groove_case(spec: SceneSpec, quality: str, cache) -> dict:
     def cells_at(n):
         strips, _, _ = groove_patches(n, 1, length=length, opening_deg=opening, width=w)
         idx = patch_index_image(spec, strips, (W, H))
-        return Cells.of(idx, _pixel_selection(spec, strips, W, H, whole=False), gt["radiance"], gt["radiance_delta"], 2 * n,
+        return Cells.of(idx, _pixel_selection(spec, strips, W, H, whole=False), gt["radiance"], gt.sd_of("radiance", _grey), 2 * n,
                         faces=_faces(strips, idx))
 
     def model_at(n):
@@ -431,7 +431,7 @@ def room_case(spec: SceneSpec, quality: str, cache) -> dict:
     levels = [(12, 4), (24, 6)] if big else [(6, 3), (12, 4)]
     mesh = model_patches(spec, view_width(spec) / (6 if big else 3))
     idx = patch_index_image(spec, mesh, (W, H))
-    cells = Cells.of(idx, _pixel_selection(spec, mesh, W, H, whole=False), gt["radiance"], gt["radiance_delta"],
+    cells = Cells.of(idx, _pixel_selection(spec, mesh, W, H, whole=False), gt["radiance"], gt.sd_of("radiance", _grey),
                      len(mesh), faces=_faces(mesh, idx))
     images = {}
 

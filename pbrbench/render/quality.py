@@ -15,8 +15,12 @@ of the benchmark to run:
 * ``noise_target`` / ``max_spp_factor``: the relative noise (median, RMS over the lit pure
   pixels) every rendered pass should reach; a pass rendered at the scene's samples per pixel that
   is noisier gets the missing samples, up to ``max_spp_factor`` times the scene's count
-  (:meth:`pbrbench.render.groundtruth._Renderer.render_pair`); the achieved noise and samples are
-  recorded with the ground truth.
+  (:meth:`pbrbench.render.groundtruth._Renderer.render_groups`); the achieved noise and samples are
+  recorded with the ground truth;
+* ``groups``: every pass is rendered as this many independent sample groups (``spp / groups``
+  samples each, seeds of their own), so every score gets a delete-one-group jackknife standard
+  error with ``groups - 1`` degrees of freedom and a Monte Carlo bias estimate
+  (:mod:`pbrbench.bench.uncertainty`).
 
 ``draft`` is the CI setting (seconds per scene), ``standard`` the benchmark, ``high`` four times the
 samples.  Every ground truth and every run records its profile's name.  No code compares a
@@ -44,6 +48,7 @@ class Quality:
     description: str = ""
     noise_target: tuple[float, float] | None = None   # (median, rms) relative sd of every rendered pass
     max_spp_factor: float = 1.0                         # at most this many times the scene's spp
+    groups: int = 4                                     # independent sample groups per pass (jackknife)
 
     def resolution(self, res: tuple[int, int]) -> tuple[int, int]:
         w, h = res
@@ -60,7 +65,7 @@ class Quality:
         return {"name": self.name, "res_scale": self.res_scale, "spp_scale": self.spp_scale,
                 "min_res": self.min_res, "min_spp": self.min_spp,
                 "noise_target": list(self.noise_target) if self.noise_target else None,
-                "max_spp_factor": self.max_spp_factor}
+                "max_spp_factor": self.max_spp_factor, "groups": self.groups}
 
     def pick(self, full, short) -> tuple:
         """``short`` (a task's representative subset) when this profile runs short subsets and
@@ -95,7 +100,7 @@ def _frozen(d: dict) -> MappingProxyType:
 PRESETS: dict[str, Quality] = {
     "draft": Quality(
         "draft", 0.25, 1 / 16, short_subset=True, sweep_keep=2,
-        # the regression run must stay short (every job also runs its two half-sample replicates):
+        # the regression run must stay short (every job is also scored on its delete-one-group replicates):
         # iteration budgets of the iterative SFS methods halved, Mitsunaga-Nayar with a fixed
         # degree instead of its held-out degree search (about 20x slower); coarser meshes for the
         # radiosity models; a small budget for inverse rendering

@@ -7,11 +7,18 @@ and the cost of each effect, with standard errors.
   many scenes it averages.
 * **Cost of an effect** = mean over matched scenes of ``value(condition) - value(reference)``, in
   the metric's own units (positive = worse for a lower-is-better metric).
-* **Standard errors.** Per scene, the paired standard error of the difference
-  (:func:`pbrbench.bench.uncertainty.paired_se`: from the paired half-sample replicates when both
+* **Standard errors.** Per scene, the paired jackknife standard error of the difference
+  (:func:`pbrbench.uncertainty.paired`: from the paired delete-one-group replicates when both
   come from one render, else independent); the mean over ``n`` independently rendered scenes has
-  ``SE = sqrt(sum SE_s^2) / n``.  A cost within two standard errors of zero is *not significant*
-  (shown greyed); a cell without an uncertainty estimate is never called significant.
+  ``SE = sqrt(sum SE_s^2) / n`` on Welch-Satterthwaite degrees of freedom.  A cost inside the 95 %
+  Student-t interval of zero is *not significant* (shown greyed); a cell without an uncertainty
+  estimate is never called significant.
+* **Monte Carlo bias.** Every cell also carries the mean of its scores' bias estimates
+  (:func:`pbrbench.uncertainty.jackknife`); a cell whose ``|bias|`` exceeds its standard error is
+  *noise-limited* (``noise_limited``) and shows the bias-corrected value ``value - bias`` beside it.
+* **Bimodal replicates.** A cell any of whose scores has bimodal replicates (a discrete choice of
+  the pipeline flipped between them: :func:`pbrbench.uncertainty.unstable`) is ``unstable``: its
+  ± would average a flip, so it is never called significant.
 * **Geometry.** Where the interreflection condition's (``global``) matched scenes include both
   convex scenes (tag ``convex``: no part can see another) and scenes with concavities (tag
   ``concave``), its cost is also given for each group: interreflection can only cost something
@@ -25,7 +32,7 @@ from __future__ import annotations
 import re
 from collections import defaultdict
 
-from pbrbench.uncertainty import finite, mean_se, paired_se, significant
+from pbrbench.uncertainty import bias_of, dof_of, finite, mean_se, paired, paired_bias, significant
 
 SPLIT_BASES = ("global",)   # conditions whose cost depends on whether a surface sees itself
 
@@ -45,10 +52,37 @@ def base_scene(scene: str) -> str:
 ROUNDING = 1e-6
 
 
-def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.0) -> dict:
-    sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0) if effect else None
-    return {"value": value, "se": se, "n": n, "effect": effect, "significant": sig,
-            "insignificant": sig is False}
+def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.0, dof: float = 0.0,
+         bias: float = float("nan"), unstable: bool = False) -> dict:
+    """One headline cell: value, standard error, dof, scenes, bias, and the flags the report shows."""
+    sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0, dof=dof or None) \
+        if effect and not unstable else None
+    limited = finite(bias) and finite(se) and abs(bias) > se and abs(bias) > ROUNDING * abs(value)
+    return {"value": value, "se": se, "dof": dof, "n": n, "effect": effect, "significant": sig,
+            "insignificant": sig is False, "bias": bias, "noise_limited": bool(limited),
+            "corrected": value - bias if finite(bias) else float("nan"), "unstable": bool(unstable)}
+
+
+def summary(scores: list[dict], *, effect: bool = False, reference: float = 0.0) -> dict:
+    """The cell of the mean of independent scores (``effect`` False) ."""
+    m, se, dof = mean_se([s["value"] for s in scores], [s.get("uncertainty") for s in scores],
+                         [dof_of(s) for s in scores])
+    biases = [bias_of(s) for s in scores]
+    bias = sum(biases) / len(biases) if biases and all(finite(b) for b in biases) else float("nan")
+    return cell(m, se, len(scores), effect=effect, reference=reference, dof=dof, bias=bias,
+                unstable=any(s.get("unstable") for s in scores))
+
+
+def difference(others: list[dict], bases: list[dict]) -> dict:
+    """The cell of the mean of paired differences ``other - base`` (one pair per scene)."""
+    pairs = [paired(o, b) for o, b in zip(others, bases, strict=True)]
+    m, se, dof = mean_se([o["value"] - b["value"] for o, b in zip(others, bases, strict=True)],
+                         [p[0] for p in pairs], [p[1] for p in pairs])
+    biases = [paired_bias(o, b) for o, b in zip(others, bases, strict=True)]
+    bias = sum(biases) / len(biases) if all(finite(x) for x in biases) else float("nan")
+    ref_mean = sum(b["value"] for b in bases) / len(bases)
+    return cell(m, se, len(bases), effect=True, reference=ref_mean, dof=dof, bias=bias,
+                unstable=any(s.get("unstable") for s in [*others, *bases]))
 
 
 def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None) -> list[dict]:
@@ -97,23 +131,18 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
                     if not mine:
                         continue
                     keys = sorted(mine)
-                    m, se = mean_se([mine[k]["value"] for k in keys], [mine[k].get("uncertainty") for k in keys])
                     beside = []
                     for b in algs:
                         theirs = at[(b, c)]
                         if b != a and all(k in theirs for k in keys):
-                            bm, bse = mean_se([theirs[k]["value"] for k in keys],
-                                              [theirs[k].get("uncertainty") for k in keys])
-                            beside.append({"algorithm": b, **cell(bm, bse, len(keys), effect=False)})
+                            beside.append({"algorithm": b, **summary([theirs[k] for k in keys])})
                     partial.append({"algorithm": a, "condition": c, "scenes": keys,
-                                    **cell(m, se, len(keys), effect=False), "beside": beside})
+                                    **summary([mine[k] for k in keys]), "beside": beside})
                 continue
             cells = []
             for col in columns:
                 if not col["effect"]:
-                    vals = list(base.values())
-                    m, se = mean_se([s["value"] for s in vals], [s.get("uncertainty") for s in vals])
-                    cells.append(cell(m, se, len(vals), effect=False))
+                    cells.append(summary(list(base.values())))
                     continue
                 other = at[(a, col["condition"])]
                 keys = sorted(k for k in other.keys() & base.keys()
@@ -121,10 +150,7 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
                 if not keys:
                     cells.append(None)
                     continue
-                m, se = mean_se([other[k]["value"] - base[k]["value"] for k in keys],
-                                [paired_se(other[k], base[k]) for k in keys])
-                ref_mean = sum(base[k]["value"] for k in keys) / len(keys)
-                cells.append(cell(m, se, len(keys), effect=True, reference=ref_mean))
+                cells.append(difference([other[k] for k in keys], [base[k] for k in keys]))
             table.append({"algorithm": a, "cells": cells})
         ses = sorted(s["uncertainty"] for s in rows if s["condition"] == ref and finite(s.get("uncertainty")))
         floor = ses[len(ses) // 2] if ses else float("nan")
@@ -140,4 +166,9 @@ def format_cell(c: dict | None, digits: int = 3) -> str:
     if c is None or not finite(c["value"]):
         return "–"
     v = f"{c['value']:+.{digits}g}" if c["effect"] else f"{c['value']:.{digits}g}"
-    return v + (f" ± {c['se']:.2g}" if finite(c["se"]) else "")
+    v += f" ± {c['se']:.2g}" if finite(c["se"]) else ""
+    if c.get("noise_limited"):
+        v += f" (bias {c['bias']:+.2g}: {c['corrected']:.{digits}g} corrected)"
+    if c.get("unstable"):
+        v += " (bimodal replicates)"
+    return v

@@ -68,7 +68,8 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
     """Per task: the effect table of :func:`pbrbench.report.effects.effect_tables` with display
     text, colours and regression markers.  The reference column is coloured green (best) to red
     (worst) across algorithms; an effect is red when it costs accuracy significantly, green when it
-    helps, and greyed when it is within two standard errors of zero."""
+    helps, and greyed when it is inside the 95 % Student-t interval of zero; a noise-limited cell
+    (|bias| > SE) is marked ``biased``, a cell with bimodal replicates ``unstable``."""
     from pbrbench.report.effects import effect_tables, format_cell
 
     marks = marks or {}
@@ -94,9 +95,19 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                     cls = "ns" if c["insignificant"] else ("cost" if c["significant"] and worse else
                                                             "gain" if c["significant"] else "")
                 title = f"n = {c['n']} scene(s)" + ("" if col["group"] is None else f", {col['group']}")
+                if math.isfinite(c.get("dof") or float("nan")) and c.get("dof"):
+                    title += f"; {c['dof']:.3g} degrees of freedom"
                 if col["effect"]:
-                    title += "; " + ("within 2 SE of zero: not an effect" if c["insignificant"] else
-                                     "beyond 2 SE: an effect" if c["significant"] else "no uncertainty estimate")
+                    title += "; " + ("bimodal replicates: not tested" if c.get("unstable") else
+                                     "inside the 95 % t interval of zero: not an effect" if c["insignificant"] else
+                                     "beyond the 95 % t interval: an effect" if c["significant"] else
+                                     "no uncertainty estimate")
+                if c.get("noise_limited"):
+                    cls = (cls + " biased").strip()
+                    title += (f"; noise-limited: the Monte Carlo bias estimate {c['bias']:+.3g} exceeds the standard "
+                              f"error, bias-corrected value {c['corrected']:.4g}")
+                if c.get("unstable"):
+                    cls = (cls + " unstable").strip()
                 cells.append({"text": format_cell(c), "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
                               "cls": cls, "title": title, "mark": marks.get((t["task"], r["algorithm"], col["condition"]))})
             rows.append({"algorithm": r["algorithm"], "cells": cells})
@@ -367,6 +378,7 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
     failures = [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
                 for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())]
     return {
+        "noise": noise_statement(heads, run),
         "run": run, "meta_rows": meta_rows, "headlines": heads, "tasks": tasks, "ground_truths": gts,
         "history": history, "nav_tasks": [t["name"] for t in tasks], "gallery": gallery,
         "has_gallery": bool(gallery),
@@ -374,6 +386,29 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
         "job_errors": _job_errors(store.job_errors(run_id)), "perf": perf, "failures": failures,
         "n_scores": len(scores), "time_shares": time_shares,
     }
+
+
+def noise_statement(heads: list[dict], run: dict) -> dict:
+    """How many headline cells are noise-limited (|Monte Carlo bias| > SE) or bimodal, per task,
+    and what more samples would change (the bias falls as 1/spp: at ``s`` times the samples to
+    about 1/s of its value)."""
+    per_task, n_cells, n_lim, n_unst = [], 0, 0, 0
+    for h in heads:
+        cells = [c for r in h["rows"] for c in r["cells"] if c.get("value") is not None]
+        lim = sum(1 for c in cells if "biased" in c.get("cls", ""))
+        unst = sum(1 for c in cells if "unstable" in c.get("cls", ""))
+        n_cells, n_lim, n_unst = n_cells + len(cells), n_lim + lim, n_unst + unst
+        if lim or unst:
+            per_task.append({"task": h["task"], "cells": len(cells), "limited": lim, "unstable": unst})
+    prof = run["config"].get("quality_profile") or {}
+    scale = prof.get("spp_scale")
+    hint = ""
+    if n_lim and scale and scale < 1:
+        hint = (f"This run has {scale:g} of the scene files' samples; the standard quality has {1 / scale:g} times as "
+                f"many, which cuts the bias to about {scale:g} of the values shown (it falls as 1/spp) and the standard "
+                f"error to about {scale ** 0.5:.2g}: run `pbrbench run --quality standard` before drawing conclusions "
+                "from the marked cells.")
+    return {"cells": n_cells, "limited": n_lim, "unstable": n_unst, "per_task": per_task, "hint": hint}
 
 
 def _lock_text(lock: dict | None) -> str:
@@ -428,7 +463,7 @@ def write_compare(path: str | Path, runs: tuple[dict, dict], rows: list[dict], c
     by_task = defaultdict(list)
     for r in sorted(rows, key=lambda r: (order.get(r["direction"], 9), r["scene"], r["condition"], r["algorithm"], r["metric"])):
         by_task[r["task"]].append(dict(r, a_text=fmt(r["a"]), b_text=fmt(r["b"]), d_text=fmt(r["delta"]),
-                                       n_text=fmt(2 * r["se"]) if math.isfinite(r["se"]) else "–"))
+                                       n_text=fmt(r["limit"]) if math.isfinite(r.get("limit", float("nan"))) else "–"))
     tasks = [{"name": t, "rows": rs, "counts": {d: sum(1 for r in rs if r["direction"] == d) for d in order}}
              for t, rs in sorted(by_task.items())]
     _write(path, render_page("compare.html", {"run": runs[1], "runs": runs, "tasks": tasks, "counts": counts,

@@ -53,9 +53,10 @@ class Job:
 class Score:
     """One number: what was measured, on what, by which algorithm, and how long it took.
 
-    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated), from the
-    replicate values ``rep_a``, ``rep_b`` (the two half-sample renders) and ``rep_noise`` (a second
-    seed): :mod:`pbrbench.bench.uncertainty`.
+    ``uncertainty`` is one standard error of ``value`` (NaN when none was estimated) on ``dof``
+    degrees of freedom and ``bias`` the estimated Monte Carlo bias of ``value``, from the replicate
+    values ``replicates`` (the delete-one-group ground truths) and ``rep_noise`` (a second seed);
+    ``unstable`` says the replicates are bimodal: :mod:`pbrbench.bench.uncertainty`.
     """
 
     task: str
@@ -70,9 +71,11 @@ class Score:
     better: str = "lower"            # "lower" or "higher": the direction of improvement
     unit: str = ""
     uncertainty: float = float("nan")
-    rep_a: float | None = None
-    rep_b: float | None = None
+    dof: float = 0.0
+    bias: float = float("nan")
+    replicates: tuple | None = None
     rep_noise: float | None = None
+    unstable: bool | None = None
 
     def as_dict(self) -> dict:
         return asdict(self)

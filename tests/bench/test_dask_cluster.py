@@ -125,7 +125,7 @@ def _score_table(outcome) -> dict:
     """Each score's value, standard error and replicates as ``repr`` strings (round-trip exact
     for floats, and NaN equals NaN)."""
     return {(s["task"], s["scene"], s["condition"], s["algorithm"], s["metric"], s["job"]):
-            tuple(repr(s[f]) for f in ("value", "uncertainty", "rep_a", "rep_b", "rep_noise"))
+            tuple(repr(s[f]) for f in ("value", "uncertainty", "replicates", "rep_noise", "dof", "bias"))
             for s in outcome.scores}
 
 

@@ -1,5 +1,6 @@
-"""The standard errors of the scores: the half-sample estimator on synthetic data with a known
-answer, its plumbing through a run, and a check against the spread over independent renders."""
+"""The standard errors of the scores: the delete-one-group jackknife on synthetic data with a
+known answer (SE per cell, its degrees of freedom, the Monte Carlo bias), its plumbing through a
+run, and a check against the spread over independent renders."""
 
 from __future__ import annotations
 
@@ -7,30 +8,37 @@ import math
 
 import numpy as np
 import pytest
+from scipy import stats
 
 from pbrbench.bench.uncertainty import attach, replicate_scores
 from pbrbench.registry import Algorithm, builtin_registry
-from pbrbench.render.groundtruth import GroundTruth
+from pbrbench.render.groundtruth import JK, GroundTruth, jackknife_sd, loo_deviations
 from pbrbench.render.quality import get_quality
 from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
-from pbrbench.uncertainty import standard_error
+from pbrbench.uncertainty import estimate, jackknife, standard_error, unstable
 from tests.fakes import ps_gt, ps_job
 
+G = 4
 
-def noisy_gt(truth, sigma, rng):
-    """A ground truth whose 'radiance' is the mean of two half renders with noise ``sigma`` each
-    ('albedo' holds the exact image, which replicates leave alone)."""
-    a = truth + sigma * rng.standard_normal(truth.shape)
-    b = truth + sigma * rng.standard_normal(truth.shape)
-    m = (0.5 * (a + b)).astype(np.float32)
-    d = (0.5 * (a - b)).astype(np.float32)
-    return GroundTruth({"radiance": m, "radiance_delta": d, "direct": m, "direct_delta": d,
-                        "albedo": truth.astype(np.float32)}, {"scene_hash": "x"})
+
+def noisy_gt(truth, sigma, rng, groups=G):
+    """A ground truth whose 'radiance' is the mean of ``groups`` sample groups whose mean has noise
+    ``sigma`` ('albedo' holds the exact image, which replicates leave alone)."""
+    gs = [truth + sigma * math.sqrt(groups) * rng.standard_normal(truth.shape) for _ in range(groups)]
+    m, jk = loo_deviations(gs)
+    arr = {"radiance": m.astype(np.float32), "direct": m.astype(np.float32), "albedo": truth.astype(np.float32)}
+    for i in range(groups):
+        arr[f"radiance{JK}{i}"] = arr[f"direct{JK}{i}"] = jk[i].astype(np.float32)
+    return GroundTruth(arr, {"scene_hash": "x"})
 
 
 class ErrorTask(Task):
-    """Scores how far the rendered image is from the exact one (RMS and mean absolute error)."""
+    """Scores how far the rendered image is from a model of it that is ``offset`` off (a
+    systematic error, as every real algorithm has): RMS, mean absolute and mean squared error,
+    all biased upward by the noise.  ``offset = 0`` scores the noise alone."""
+
+    offset = 0.1
 
     name = "err"
     conditions = ("global",)
@@ -46,50 +54,101 @@ class ErrorTask(Task):
         gt = gts[job.scene]
         book = C.ScoreBook(job, "x", algorithms)
         for alg in algorithms:
-            d = alg(gt["radiance"].astype(float)) - gt["albedo"]
-            book.add(alg.name, {"height_rmse": float(np.sqrt(np.mean(d * d))), "height_mae": float(np.mean(np.abs(d)))}, 0.0)
+            d = alg(gt["radiance"].astype(float)) - (1 + self.offset) * gt["albedo"]
+            book.add(alg.name, {"height_rmse": float(np.sqrt(np.mean(d * d))), "height_mae": float(np.mean(np.abs(d))),
+                                "height_rmse_rel": float(np.mean(d * d))}, 0.0)
         return JobResult(job, scores=book.scores)
 
 
-def test_replicates_rebuild_the_halves_exactly():
+def test_replicates_are_the_delete_one_group_means():
     rng = np.random.default_rng(0)
     truth = rng.uniform(0.2, 1.0, (8, 9, 3))
-    a = truth + 0.01 * rng.standard_normal(truth.shape)
-    b = truth + 0.01 * rng.standard_normal(truth.shape)
-    gt = GroundTruth({"radiance": ((a + b) / 2).astype(np.float32), "radiance_delta": ((a - b) / 2).astype(np.float32),
-                      "direct": ((a + b) / 2).astype(np.float32), "direct_delta": ((a - b) / 2).astype(np.float32),
-                      "indirect": np.zeros_like(a, np.float32)}, {})
-    assert gt.has_replicates and np.allclose(gt["radiance_sd"], np.abs(a - b) / 2, atol=1e-6)
-    assert np.allclose(gt.replicate(0)["radiance"], a, atol=1e-6) and np.allclose(gt.replicate(1)["radiance"], b, atol=1e-6)
-    assert np.allclose(gt.replicate(0)["indirect"], 0, atol=1e-6)
-    with pytest.raises(ValueError, match="half"):
-        gt.replicate(2)
+    groups = [truth + 0.01 * rng.standard_normal(truth.shape) for _ in range(G)]
+    m, jk = loo_deviations(groups)
+    arr = {"radiance": m.astype(np.float32), "direct": m.astype(np.float32), "indirect": np.zeros_like(m, np.float32)}
+    for i in range(G):
+        arr[f"radiance{JK}{i}"] = arr[f"direct{JK}{i}"] = jk[i].astype(np.float32)
+    gt = GroundTruth(arr, {})
+    assert gt.has_replicates and gt.groups == G
+    # the jackknife sd of a mean is the groups' sample sd over sqrt(G)
+    assert np.allclose(gt["radiance_sd"], np.std(groups, axis=0, ddof=1) / math.sqrt(G), atol=1e-6)
+    assert np.allclose(jackknife_sd(jk), gt["radiance_sd"], atol=1e-6)
+    for i in range(G):
+        others = np.mean([g for j, g in enumerate(groups) if j != i], axis=0)
+        assert np.allclose(gt.replicate(i)["radiance"], others, atol=1e-6)
+        assert np.allclose(gt.replicate(i)["indirect"], 0, atol=1e-6)
+    with pytest.raises(ValueError, match="group"):
+        gt.replicate(G)
 
 
-def test_half_sample_standard_error_matches_the_spread_over_independent_renders():
-    """Two metrics of the render noise itself on K = 400 independent 'renders': the predicted
-    standard error (RMS over the renders) matches the observed SD of the metric."""
+def test_two_groups_reduce_to_the_half_sample_estimate():
+    # G = 2: the replicate deleting half a is half b, and SE = |a - b| / 2 on one degree of freedom
+    se, bias, dof = jackknife(1.0, [0.8, 1.2])
+    assert se == pytest.approx(0.2) and dof == 1 and bias == pytest.approx(0.0)
+
+
+@pytest.mark.parametrize("offset", [0.1, 0.0])
+def test_jackknife_standard_error_holds_per_cell_over_independent_renders(offset):
+    """K = 400 independent 'renders': the predicted standard error (RMS over the renders) matches
+    the observed SD of each metric, and the 95 % Student-t interval on G - 1 degrees of freedom
+    covers the mean over renders 95 % of the time (a per-cell check, not only pooled).  A metric
+    of the noise alone (offset 0: no linear term) is the jackknife's known conservative case
+    (Efron & Stein 1981): its SE is too large, never too small."""
     rng = np.random.default_rng(1)
     truth = rng.uniform(0.2, 1.0, (16, 16, 3))
     task = ErrorTask()
+    task.offset = offset
     algs = builtin_registry({task.name: task}).for_task(task.name)
     job = task.jobs(None)[0]
-    vals, ses = {}, {}
+    vals, ses, dofs = {}, {}, {}
     for _ in range(400):
         gts = {"s": noisy_gt(truth, 0.05, rng)}
         res = task.run_job(job, gts, algorithms=algs)
         reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"))
-        assert set(reps) == {"rep_a", "rep_b"}
+        assert set(reps) == {"replicates"}
         for sc in attach([s.as_dict() for s in res.scores], reps):
             vals.setdefault(sc["metric"], []).append(sc["value"])
             ses.setdefault(sc["metric"], []).append(sc["uncertainty"])
+            dofs.setdefault(sc["metric"], []).append(sc["dof"])
     for m in vals:
-        ratio = np.std(vals[m], ddof=1) / math.sqrt(np.mean(np.square(ses[m])))
-        assert 0.85 < ratio < 1.15, (m, ratio)
+        v, u = np.array(vals[m]), np.array(ses[m])
+        ratio = np.std(v, ddof=1) / math.sqrt(np.mean(u ** 2))
+        assert set(dofs[m]) == {G - 1}
+        t = stats.t.ppf(0.975, G - 1)
+        cover = np.mean(np.abs(v - v.mean()) <= t * u)
+        if offset:
+            assert 0.85 < ratio < 1.15, (m, ratio)
+            assert 0.91 <= cover <= 0.985, (m, cover)
+        else:
+            assert 0.6 < ratio < 1.05, (m, ratio)
+            assert cover >= 0.93, (m, cover)
+
+
+def test_jackknife_bias_correction_removes_the_noise_bias():
+    """The mean squared error of a noisy image is biased by the noise variance; the jackknife's
+    bias-corrected value is unbiased (its mean over renders is ~0, the uncorrected one ~sigma^2)."""
+    rng = np.random.default_rng(2)
+    truth = rng.uniform(0.2, 1.0, (16, 16, 3))
+    task = ErrorTask()
+    algs = builtin_registry({task.name: task}).for_task(task.name)
+    job = task.jobs(None)[0]
+    raw, corrected = [], []
+    for _ in range(100):
+        gts = {"s": noisy_gt(truth, 0.05, rng)}
+        res = task.run_job(job, gts, algorithms=algs)
+        reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"))
+        (sc,) = [x for x in attach([s.as_dict() for s in res.scores], reps) if x["metric"] == "height_rmse_rel"]
+        raw.append(sc["value"])
+        corrected.append(sc["value"] - sc["bias"])
+    exact = float(np.mean((0.1 * truth) ** 2))      # the score of a noise-free render
+    assert np.mean(raw) - exact == pytest.approx(0.05 ** 2, rel=0.1)   # biased by the noise variance
+    assert abs(np.mean(corrected) - exact) < 0.05 * (np.mean(raw) - exact)
 
 
 def test_seed_dependent_jobs_add_the_noise_seed_part():
-    assert standard_error(1.0, None, None, 1.0 + math.sqrt(2) * 0.3) == pytest.approx(0.3)
+    assert standard_error(1.0, None, 1.0 + math.sqrt(2) * 0.3) == pytest.approx(0.3)
+    e = estimate(1.0, [1.1, 0.9, 1.0, 1.0], 1.0 + math.sqrt(2) * 0.3)
+    assert 1 <= e["dof"] <= 4 and e["uncertainty"] > 0.3
     from pbrbench.tasks.photometric_stereo import TASK
 
     assert TASK.seed_dependent(ps_job("local+noise0.01")) and not TASK.seed_dependent(ps_job("local"))
@@ -97,11 +156,23 @@ def test_seed_dependent_jobs_add_the_noise_seed_part():
     algs = builtin_registry({TASK.name: TASK}).for_task(TASK.name)
     job = ps_job("local+noise0.01", lights=vec)
     reps = replicate_scores(TASK, job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
-    assert set(reps) == {"rep_noise"}  # a synthetic ground truth has no halves; the noise seed part is there
+    assert set(reps) == {"rep_noise"}  # a synthetic ground truth has no sample groups; the noise seed part is there
     res = TASK.run_job(job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
     sc = {(s["algorithm"], s["metric"]): s for s in attach([s.as_dict() for s in res.scores], reps)}
     w = sc[("woodham1980", "normal_mean_deg")]
-    assert 0 < w["uncertainty"] < 0.2 * w["value"]
+    assert 0 < w["uncertainty"] < 0.2 * w["value"] and w["dof"] == 1
+
+
+def test_a_flipped_discrete_choice_is_detected_and_smooth_scores_are_not():
+    assert unstable([5.78, 3.10, 3.12, 3.11]) is True     # one group flips the pipeline's choice
+    assert unstable([0.354, 0.2912, 0.2908, 0.3538]) is True   # two groups against two
+    assert unstable([1.0, 1.01, 1.02, 1.03]) is False
+    assert unstable([0.9974, 0.9974, 0.9961, 0.9974]) is False  # one pixel of a counting metric
+    assert unstable([1.0, 2.0]) is None                    # two replicates: no test
+    # Gaussian replicates are called bimodal about once in 1000
+    rng = np.random.default_rng(5)
+    flags = [unstable(list(10 + rng.standard_normal(G))) for _ in range(20000)]
+    assert np.mean(flags) < 0.003
 
 
 @pytest.mark.render

@@ -11,11 +11,12 @@ from pbrbench.report.effects import base_scene, effect_tables, match_key
 from pbrbench.uncertainty import mean_se, paired_se, significant, standard_error
 
 
-def s(scene, cond, value, *, alg="m", unc=0.1, rep=None, h=None):
+def s(scene, cond, value, *, alg="m", unc=0.1, rep=None, h=None, dof=1e9, **kw):
     d = {"task": "t", "scene": scene, "condition": cond, "algorithm": alg, "metric": "err", "value": value,
-         "better": "lower", "unit": "deg", "uncertainty": unc, "scene_hash": h or base_scene(match_key(scene))}
+         "better": "lower", "unit": "deg", "uncertainty": unc, "scene_hash": h or base_scene(match_key(scene)),
+         "dof": dof, **kw}
     if rep is not None:
-        d["rep_a"], d["rep_b"] = rep
+        d["replicates"] = list(rep)
     return d
 
 
@@ -29,11 +30,14 @@ def test_twins_and_labels_match_their_base_scene():
 
 
 def test_standard_error_from_replicates():
-    assert standard_error(1.0, 1.2, 0.8) == pytest.approx(0.2)
-    assert standard_error(1.0, 1.2, 0.8, 1.3) == pytest.approx(math.sqrt(0.04 + 0.09 / 2))
+    assert standard_error(1.0, [1.2, 0.8]) == pytest.approx(0.2)
+    assert standard_error(1.0, [1.2, 0.8], 1.3) == pytest.approx(math.sqrt(0.04 + 0.09 / 2))
     assert math.isnan(standard_error(1.0))
-    assert mean_se([1.0, 3.0], [0.3, 0.4]) == (2.0, pytest.approx(0.25))
+    m, se, dof = mean_se([1.0, 3.0], [0.3, 0.4], [3, 3])
+    assert m == 2.0 and se == pytest.approx(0.25) and 3 < dof < 6
     assert significant(0.5, 0.2) is True and significant(0.3, 0.2) is False and significant(1.0, float("nan")) is None
+    # Student's t on few degrees of freedom widens the interval: 0.5 is 2.5 SE, inside t(0.975, 3) = 3.18
+    assert significant(0.5, 0.2, dof=3) is False and significant(0.7, 0.2, dof=3) is True
 
 
 def test_paired_replicates_of_one_render_cancel_their_common_noise():
@@ -103,3 +107,30 @@ def test_rounding_sized_costs_are_not_effects():
     scores[1] = s("ball", "global", 9.0, unc=1e-4, rep=(9.0, 9.0))
     (t,) = effect_tables(scores, INFO)
     assert t["rows"][0]["cells"][1]["significant"] is True
+
+
+def test_noise_limited_and_bimodal_cells_are_marked():
+    # a score whose Monte Carlo bias (2.5) exceeds its SE (0.3): marked, with its corrected value
+    scores = [s("cup", "local", 1.0, bias=0.0), s("cup", "global", 16.0, unc=0.3, dof=3, bias=2.5)]
+    (t,) = effect_tables(scores, INFO)
+    ref, eff = t["rows"][0]["cells"]
+    assert not ref["noise_limited"] and eff["noise_limited"] and eff["corrected"] == pytest.approx(15.0 - 2.5)
+    assert 3 <= eff["dof"] < 4   # Welch-Satterthwaite: the global score's 3 dof dominate
+    from pbrbench.report.effects import format_cell
+
+    assert "corrected" in format_cell(eff)
+    # bimodal replicates: never called significant, shown as such
+    scores = [s("cup", "local", 1.0), s("cup", "global", 9.0, unstable=True)]
+    (t,) = effect_tables(scores, INFO)
+    eff = t["rows"][0]["cells"][1]
+    assert eff["unstable"] and eff["significant"] is None and "bimodal" in format_cell(eff)
+
+
+def test_paired_jackknife_of_many_groups():
+    from pbrbench.uncertainty import paired
+
+    loc = s("x", "local", 1.0, unc=0.5, rep=(1.5, 0.5, 1.4, 0.6))
+    glo = s("x", "global", 2.0, unc=0.5, rep=(2.51, 1.49, 2.42, 1.58))
+    se, dof = paired(glo, loc)
+    d = [0.01, -0.01, 0.02, -0.02]
+    assert dof == 3 and se == pytest.approx(math.sqrt(3 / 4 * sum(x * x for x in d)))
