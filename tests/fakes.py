@@ -228,3 +228,24 @@ def run_task(task, job, gts, *, seed=0, quality="draft", registry=None):
 
     reg = registry or builtin_registry({task.name: task})
     return task.run_job(job, gts, seed=seed, algorithms=reg.for_task(task.name), quality=get_quality(quality))
+
+
+def with_groups(gt, sigma: float, *, seed: int = 0, groups: int = 4):
+    """``gt`` with every rendered pass split into ``groups`` noisy sample groups (relative noise
+    ``sigma`` of the mean): the passes become the groups' mean and get their delete-one-group
+    deviations, as a Mitsuba ground truth has (:mod:`pbrbench.render.groundtruth`)."""
+    from pbrbench.render.groundtruth import JK, is_radiance_like, loo_deviations
+
+    rng = np.random.default_rng(seed)
+    arr = dict(gt.arrays)
+    for n, a in gt.arrays.items():
+        if not is_radiance_like(n):
+            continue
+        gs = [a * (1 + sigma * np.sqrt(groups) * rng.standard_normal(a.shape)) for _ in range(groups)]
+        m, jk = loo_deviations(gs)
+        arr[n] = m.astype(np.float32)
+        for i in range(groups):
+            arr[f"{n}{JK}{i}"] = jk[i].astype(np.float32)
+    if "radiance" in arr and "direct" in arr and "indirect" in arr:
+        arr["indirect"] = arr["radiance"] - arr["direct"]
+    return GroundTruth(arr, dict(gt.meta))

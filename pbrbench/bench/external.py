@@ -166,10 +166,29 @@ def _prediction_entry(task, pred, inputs) -> dict:
 
 
 # ----------------------------------------------------------------------------- export
-def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None) -> dict:
+def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
+    """``(sub-folder, ground truths, seed)`` of every input set a job is scored on: the full
+    ground truth (``""``), each delete-one-group replicate (``replicates/<i>``) and, where the
+    inputs depend on the seed, the second seed (``replicates/noise``): the sets
+    :mod:`pbrbench.bench.uncertainty` scores for the standard error."""
+    from pbrbench.bench.uncertainty import NOISE_SEED_OFFSET
+
+    sets = [("", gts, seed)]
+    groups = {getattr(g, "groups", 0) for g in gts.values()}
+    if all(getattr(g, "has_replicates", False) for g in gts.values()) and len(groups) == 1:
+        (G,) = groups
+        sets += [(f"replicates/{i}", {n: g.replicate(i) for n, g in gts.items()}, seed) for i in range(G)]
+    if task.seed_dependent(job):
+        sets.append(("replicates/noise", gts, seed + NOISE_SEED_OFFSET))
+    return sets
+
+
+def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None, replicates: bool = True) -> dict:
     """Write every scored job's inputs of ``task`` at ``quality`` under ``out_dir`` (see the
-    module docstring); ground truths come from ``source`` (rendered when missing).  Returns the
-    manifest."""
+    module docstring); ground truths come from ``source`` (rendered when missing).  With
+    ``replicates`` each job folder also holds ``replicates/<i>/`` (the inputs made from the
+    delete-one-group ground truths, and ``replicates/noise/`` for a second seed): predictions
+    written there too give ``evaluate`` the standard error.  Returns the manifest."""
     from pbrbench.progress import Progress
     from pbrbench.render.quality import get_quality
 
@@ -191,6 +210,12 @@ def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None) -> d
             folder = out / rel
             folder.mkdir(parents=True, exist_ok=True)
             written = {n: _write_input(folder, n, v) for n, v in inputs.items()}
+            reps = []
+            for sub, gts_r, seed_r in (input_sets(task, job, gts, seed)[1:] if replicates else []):
+                inp_r = capture_inputs(task, job, gts_r, seed=seed_r, quality=q)
+                (folder / sub).mkdir(parents=True, exist_ok=True)
+                reps.append({"folder": f"{rel}/{sub}", "seed": seed_r,
+                             "inputs": {n: _write_input(folder / sub, n, v) for n, v in inp_r.items()}})
             if "lights" in inputs and np.ndim(inputs["lights"]) == 2:   # the vectors split, for convenience
                 lv = np.asarray(inputs["lights"], float)
                 e = np.linalg.norm(lv, axis=1)
@@ -202,12 +227,12 @@ def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None) -> d
             record = {"format": FORMAT, "task": task.name, "key": job.key, "scene": job.scene,
                       "condition": job.condition, "params": _jsonable(list(job.params)), "seed": seed,
                       "quality": q.name, "folder": rel, "inputs": written, "call": _call_text(task, inputs),
-                      "predictions": preds, "conventions": CONVENTIONS}
+                      "predictions": preds, "conventions": CONVENTIONS, "replicates": reps}
             (folder / "job.json").write_text(json.dumps(record, indent=1))
             entries.append({k: record[k] for k in ("key", "scene", "condition", "folder")}
                            | {"predictions": [p["name"] for p in preds if p["required"]]})
             bar.update(1, job.scene)
-    manifest = {"format": FORMAT, "task": task.name, "quality": q.name, "seed": seed,
+    manifest = {"format": FORMAT, "task": task.name, "quality": q.name, "seed": seed, "replicates": bool(replicates),
                 "input_names": list(task.input_names), "conventions": CONVENTIONS,
                 "predictions": [{"name": p.name, "shape": p.shape, "required": p.required, "kind": p.kind,
                                  "meaning": p.meaning} for p in task.predictions],
@@ -235,7 +260,12 @@ def _readme(task, manifest) -> str:
             f"file or value, the files to write) and the input files.  The .npy files are the exact inputs of\n"
             f"pbrbench's own algorithms (float64); the .exr/.png files are the same images for any program.\n\n"
             f"Write into each job folder (or a copy of the tree given to --predictions):\n{preds}\n\n"
-            f"Then score them:  pbrbench evaluate {task.name} THIS_FOLDER [--name MINE]\n\n"
+            + ("Standard errors: each job folder also holds replicates/0, replicates/1, ... (the same inputs made\n"
+               "from the render's independent sample groups, one left out each; replicates/noise: a second noise\n"
+               "seed).  Run your program on every replicates/* folder too and write the same files there: evaluate\n"
+               "then gives every score its ± (the delete-one-group jackknife), and its Monte Carlo bias.\n\n"
+               if manifest.get("replicates") else "")
+            + f"Then score them:  pbrbench evaluate {task.name} THIS_FOLDER [--name MINE]\n\n"
             f"Conventions: {json.dumps(CONVENTIONS, indent=1)}\n")
 
 
@@ -327,21 +357,48 @@ class PredictionReader:
         self.records = records          # job key -> job.json
         self.errors: dict[str, str] = {}
 
+        self.missing_replicates: set[str] = set()   # jobs scored without replicate predictions
+
     def folder(self, record) -> Path:
         return self.predictions_dir / record["folder"]
 
-    def _check_inputs(self, record, inputs):
-        for name, entry in record["inputs"].items():
+    @staticmethod
+    def _same(written: dict, inputs: dict) -> str | None:
+        """The first input of ``inputs`` that differs from the exported set ``written``, or None."""
+        for name, entry in written.items():
             if name not in inputs:
                 continue
             v = inputs[name]
-            if "sha256" in entry:
-                same = array_digest(np.asarray(v)) == entry["sha256"]
-            else:
-                same = _jsonable(v) == entry["value"]
+            same = array_digest(np.asarray(v)) == entry["sha256"] if "sha256" in entry else _jsonable(v) == entry["value"]
             if not same:
-                raise ValueError(f"{self.export_dir / record['folder']}: input {name!r} differs from the exported one "
-                                 "(other renders or another pbrbench?); export again and rerun your program")
+                return name
+        return None
+
+    def _check_inputs(self, record, inputs) -> Path:
+        """The predictions folder of the exported input set ``inputs`` are (the job's own, or one
+        of its replicates'); ``ValueError`` naming the first input that matches none."""
+        bad = self._same(record["inputs"], inputs)
+        if bad is None:
+            return self.folder(record)
+        for rep in record.get("replicates") or []:
+            if self._same(rep["inputs"], inputs) is None:
+                return self.predictions_dir / rep["folder"]
+        raise ValueError(f"{self.export_dir / record['folder']}: input {bad!r} differs from the exported one "
+                         "(other renders or another pbrbench?); export again and rerun your program")
+
+    def load(self, record, inputs) -> dict:
+        """The prediction files for ``inputs`` (the job's, or a replicate's)."""
+        folder = self._check_inputs(record, inputs)
+        if folder != self.folder(record):
+            if not any(_find(folder, p.name) is not None for p in self.task.predictions):
+                self.missing_replicates.add(record["key"])
+                raise _NoReplicate(f"{folder}: no prediction for this replicate")
+            try:
+                return load_prediction(self.task, folder, inputs, record)
+            except ValueError:
+                self.missing_replicates.add(record["key"])
+                raise _NoReplicate(f"{folder}: no prediction for this replicate") from None
+        return load_prediction(self.task, folder, inputs, record)
 
     def files(self, record) -> dict:
         return load_prediction(self.task, self.folder(record), {}, record)
@@ -353,12 +410,17 @@ class PredictionReader:
             raise ValueError(f"no exported job for {getattr(job, 'key', '?')}")
         inputs = {**dict(zip(self.task.input_names, args, strict=False)), **kwargs}
         try:
-            self._check_inputs(record, inputs)
-            files = load_prediction(self.task, self.folder(record), inputs, record)
+            files = self.load(record, inputs)
             return self.task.prediction_output(files, inputs)
+        except _NoReplicate:
+            raise
         except ValueError as e:
             self.errors[job.key] = " ".join(str(e).split())
             raise
+
+
+class _NoReplicate(RuntimeError):
+    """A replicate's prediction files are absent: the score has no standard error (not a failure)."""
 
 
 class EvaluatedTask:
@@ -399,9 +461,8 @@ class EvaluatedTask:
         record = self.records[job.key]
         try:
             inputs = capture_inputs(self.task, job, gts, seed=seed, quality=quality)
-            self.reader._check_inputs(record, inputs)
-            files = load_prediction(self.task, self.reader.folder(record), inputs, record)
-        except ValueError:
+            files = self.reader.load(record, inputs)
+        except (ValueError, _NoReplicate):
             return None            # the calling-convention route reports the problem
         return self.task.score_outputs(job, gts, files, algorithm=alg, seed=seed, quality=quality)
 
@@ -474,10 +535,11 @@ def evaluate_export(task, export_dir, *, predictions_dir=None, name: str = "exte
     from pbrbench.render.quality import get_quality
 
     proxy.jobs(get_quality(manifest["quality"]))       # refuse a stale export before a run is created
-    # predictions are files made from the full ground truth: there are none for the half-sample
-    # replicates (no standard error), and files change between evaluations (no job cache)
+    # the replicates' predictions (when the program wrote them) give the standard errors; files
+    # change between evaluations (no job cache)
+    has_reps = any(r.get("replicates") for r in records.values())
     cfg = RunConfig(tasks=[task.name], quality=manifest["quality"], seed=int(manifest["seed"]), report=report,
-                    uncertainty=False, job_cache=False,
+                    uncertainty=has_reps, job_cache=False,
                     entry_points=False, algorithm_time_limit=None)
     outcome = run_benchmark(cfg, settings=replace(settings, baselines=None), tasks={task.name: proxy},
                             source=source, registry=reg, log=log)

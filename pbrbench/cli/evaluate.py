@@ -87,6 +87,15 @@ def _export(args, name: str, d: Path) -> int:
         print(line)
     for msg in reader.errors.values():
         print(f"pbrbench: prediction failed: {msg}", file=sys.stderr)
+    if not m.get("replicates"):
+        print("note: the export has no replicate inputs (exported with --no-replicates): the scores carry no ± "
+              "standard error")
+    elif reader.missing_replicates:
+        print(f"note: {len(reader.missing_replicates)} of {len(m['jobs'])} job(s) have no predictions in their "
+              "replicates/ folders: those scores carry no ± standard error; run your program on every "
+              "jobs/*/replicates/*/ folder too (same inputs, same outputs) to get it")
+    else:
+        print("standard errors: from the predictions on every job's replicate inputs (delete-one-group jackknife)")
     if o.report:
         print(f"report: {o.report.resolve()}")
     return 1 if reader.errors else 0

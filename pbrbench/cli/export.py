@@ -22,6 +22,10 @@ def register(sub):
     p.add_argument("--out", required=True, metavar="DIR", help="the export folder (new or empty)")
     add_quality(p)
     p.add_argument("--seed", type=int, default=0, help="the run seed of the noise conditions (default 0)")
+    p.add_argument("--no-replicates", action="store_true",
+                   help="write only each job's own inputs, not the replicate inputs (jobs/*/replicates/*/: the "
+                        "delete-one-group ground truths and a second noise seed) that give evaluate its ± standard "
+                        "errors")
     add_variant(p)
     add_cache(p)
     p.set_defaults(func=run)
@@ -42,7 +46,7 @@ def run(args) -> int:
     task = get_tasks([name])[name]
     source = GroundTruthSource(args.quality, cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
     m = export_task(task, args.out, quality=args.quality, seed=args.seed, source=source,
-                    log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr))
+                    log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr), replicates=not args.no_replicates)
     need = ", ".join(f"{p['name']}{'' if p['required'] else ' (optional)'}" for p in m["predictions"])
     print(f"{len(m['jobs'])} job(s) of {task.name} ({m['quality']}, seed {m['seed']}) in {args.out}")
     print(f"write per job folder: {need}; see {args.out}/README.txt")

@@ -6,6 +6,7 @@ naming the file, and the other jobs are still scored."""
 from __future__ import annotations
 
 import json
+import math
 import os
 import subprocess
 import sys
@@ -94,12 +95,17 @@ from pbrbench.infer.sfs import shape_from_shading_pentland1990
 from pbrbench.infer.specular import detect_specularities, remove_specularities_harmonic
 
 root, fmt = Path(sys.argv[1]), sys.argv[2]
+reps = len(sys.argv) > 3 and sys.argv[3] == "replicates"
 m = json.loads((root / "manifest.json").read_text())
+todo = []
 for e in m["jobs"]:
-    d = root / e["folder"]
-    job = json.loads((d / "job.json").read_text())
+    job = json.loads((root / e["folder"] / "job.json").read_text())
+    todo.append((root / e["folder"], job["inputs"]))
+    if reps:
+        todo += [(root / r["folder"], r["inputs"]) for r in job["replicates"]]
+for d, inputs in todo:
     def get(name):
-        x = job["inputs"][name]
+        x = inputs[name]
         return np.load(d / x["exact"]) if "exact" in x else (np.asarray(x["value"]) if isinstance(x["value"], list) else x["value"])
     def put(name, a):
         if fmt == "exr" and np.asarray(a).dtype != bool:
@@ -140,8 +146,8 @@ def _in_process(tmp_path, task, seed):
                          log=lambda m: None)
 
 
-def _external(export_dir, fmt="npy"):
-    q = subprocess.run([sys.executable, "-c", EXTERNAL, str(export_dir), fmt], capture_output=True, text=True,
+def _external(export_dir, fmt="npy", *extra):
+    q = subprocess.run([sys.executable, "-c", EXTERNAL, str(export_dir), fmt, *extra], capture_output=True, text=True,
                        timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=export_dir)
     assert q.returncode == 0, q.stderr[-3000:]
 
@@ -171,6 +177,46 @@ def test_export_external_program_evaluate_reproduces_the_in_process_scores_exact
 
     with Store(settings_for(tmp_path / "ev").store_path()) as st:
         assert [r["id"] for r in st.runs()] == [out.run_id]
+
+
+class Grouped(Synthetic):
+    """Synthetic ground truths with G = 4 noisy sample groups (delete-one-group replicates)."""
+
+    def load(self, spec):
+        from tests.fakes import with_groups
+
+        return with_groups(super().load(spec), 0.01, seed=sum(map(ord, spec.name)))
+
+
+def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicates(tmp_path):
+    task, seed = TASKS["photometric_stereo"], 1
+    ref = run_benchmark(RunConfig(quality="draft", seed=seed, entry_points=False), settings=settings_for(tmp_path / "ref"),
+                        tasks={task.name: task}, source=Grouped(tmp_path / "cache"),
+                        registry=Registry([builtin_registry({task.name: task}).get(task.name, "woodham1980")]),
+                        log=lambda m: None)
+    want = {(s["scene"], s["condition"], s["metric"]): (s["value"], s["uncertainty"], s["dof"], s["bias"])
+            for s in ref.scores}
+    assert all(math.isfinite(u) for _, u, _, _ in want.values())
+    export_task(task, tmp_path / "export", quality=get_quality("draft"), seed=seed, source=Grouped(tmp_path / "cache"))
+    job = json.loads((tmp_path / "export" / read_manifest(tmp_path / "export")["jobs"][1]["folder"] / "job.json").read_text())
+    assert [r["folder"].split("/", 2)[-1] for r in job["replicates"]] == [
+        "replicates/0", "replicates/1", "replicates/2", "replicates/3", "replicates/noise"]   # local+noise0.01
+    # the program ran on the jobs only: scores, no standard errors, and the reader says why
+    _external(tmp_path / "export")
+    out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "a"),
+                                  source=Grouped(tmp_path / "cache"), log=lambda m: None)
+    assert not reader.errors and len(reader.missing_replicates) == 3
+    got = {(s["scene"], s["condition"], s["metric"]): s for s in out.scores if s["algorithm"] == "mine"}
+    assert {k: v["value"] for k, v in got.items()} == {k: v[0] for k, v in want.items()}
+    assert all(math.isnan(v["uncertainty"]) for v in got.values())
+    # ... and on every replicate folder too: the in-process standard errors, bit for bit
+    _external(tmp_path / "export", "npy", "replicates")
+    out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "b"),
+                                  source=Grouped(tmp_path / "cache"), log=lambda m: None)
+    assert not reader.errors and not reader.missing_replicates
+    got = {(s["scene"], s["condition"], s["metric"]): (s["value"], s["uncertainty"], s["dof"], s["bias"])
+           for s in out.scores if s["algorithm"] == "mine"}
+    assert got == want
 
 
 def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
