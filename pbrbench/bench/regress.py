@@ -72,7 +72,7 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
     if not runs:
         raise ValueError("runs: need the scores of at least one run; pass one list of score dicts per seed")
     by_run = [{score_key(s): s for s in r} for r in runs]
-    entries = {}
+    entries, hashes, versions = {}, {}, {}
     for key, s in sorted(by_run[0].items()):
         ss = [b[key] for b in by_run if key in b]
         vals = [_val(x["value"]) for x in ss]
@@ -85,17 +85,27 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
             parts.append((math.sqrt(var), n - 1))
         sd, dof = pooled_sd(*parts)
         flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0)
-        entries[key] = {**{f: s.get(f, "") for f in KEY_FIELDS}, "scene_hash": s.get("scene_hash", ""),
-                        "algorithm_version": s.get("algorithm_version", ""),
-                        "value": _sig(mean) if n == len(vals) else None, "values": [_sig(v) for v in vals],
-                        "sd": _sig(sd), "dof": round(dof, 2), "n_seeds": len(vals),
-                        "better": s.get("better", "lower"), "unstable": bool(flips)}
-    return {"format": FORMAT, "quality": quality, "seeds": list(seeds),
+        e = {"value": _sig(mean) if n == len(vals) else None, "sd": _sig(sd), "dof": round(dof, 2),
+             "n_seeds": len(vals)}
+        if s.get("better", "lower") != "lower":
+            e["better"] = s["better"]
+        if flips:
+            e["unstable"] = True
+        entries[key] = e
+        if s.get("scene_hash"):
+            hashes[s["scene"]] = s["scene_hash"][:16]
+        if s.get("algorithm_version"):
+            versions[f"{s['task']}/{s['algorithm']}"] = s["algorithm_version"]
+    return {"format": FORMAT, "quality": quality, "seeds": list(seeds), "scene_hashes": hashes,
+            "algorithm_versions": versions,
             "method": (f"value = mean over {len(runs)} runs with independent render seeds; sd = one run's standard "
                        "deviation pooled from the spread over the seeds and each run's jackknife standard error; a "
                        "score changed when |new - value| > t(1 - alpha/2, dof) * sd * sqrt(1 + 1/n_seeds) + float32 "
                        "rounding (pbrbench.uncertainty.change)"),
-            "note": note, "entries": entries}
+            "note": note, "entries": entries,
+            "fields": "entries: 'task|scene|condition|algorithm|metric' -> value (mean over the seeds), sd and dof "
+                      "(one run's noise), n_seeds, better (when not 'lower'), unstable (when the replicates were "
+                      "bimodal); scene_hashes: the first 16 hex digits of each scene's content hash"}
 
 
 def unstable_of(s: dict) -> bool:
@@ -149,7 +159,7 @@ class Change:
     def __str__(self) -> str:
         return (f"{self.kind}: {self.task} / {self.scene} / {self.condition} / {self.algorithm} / {self.metric}: "
                 f"old {self.old:.6g}, new {self.new:.6g}, limit {self.tolerance:.3g} ({self.better} is better)"
-                + (" [the scene file changed since the baseline]" if self.scene_changed else ""))
+                + (" [the scene file changed since the baseline, or its render seed]" if self.scene_changed else ""))
 
 
 @dataclass
@@ -190,6 +200,8 @@ class Comparison:
 def compare(scores: list[dict], baselines: dict | None) -> Comparison:
     """Check ``scores`` (dicts with the key fields, value, better) against ``baselines``."""
     entries = (baselines or {}).get("entries", {})
+    hashes = (baselines or {}).get("scene_hashes", {})
+    versions = (baselines or {}).get("algorithm_versions", {})
     regs, imps, unst, new, strong = [], [], [], [], []
     no_noise = 0
     seen = set()
@@ -203,13 +215,14 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
             new.append(key)
             continue
         seen.add(key)
-        if b.get("algorithm_version") and s.get("algorithm_version") and b["algorithm_version"] != s["algorithm_version"]:
-            changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {b['algorithm_version']} -> {s['algorithm_version']}")
+        bv = versions.get(f"{s['task']}/{s['algorithm']}")
+        if bv and s.get("algorithm_version") and bv != s["algorithm_version"]:
+            changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {bv} -> {s['algorithm_version']}")
         old, cur = _val(b["value"]), _val(s["value"])
         sd, dof = pooled_sd((_val(b.get("sd")), float(b.get("dof") or 0)), (_unc(s) or float("nan"), dof_of(s)))
         test = change(old, cur, sd, dof, n_a=int(b.get("n_seeds") or 1))
         tol = test["limit"]
-        better = b.get("better", s.get("better", "lower"))
+        better = b.get("better", "lower")
         kind = None
         if math.isnan(old):
             kind = None if math.isnan(cur) else "improvement"
@@ -226,7 +239,8 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
                 if b.get("unstable") or unstable_of(s):
                     kind = "unstable"
         if kind:
-            changed = bool(b.get("scene_hash")) and bool(s.get("scene_hash")) and b["scene_hash"] != s["scene_hash"]
+            bh = hashes.get(s["scene"], "")
+            changed = bool(bh) and bool(s.get("scene_hash")) and not s["scene_hash"].startswith(bh)
             ch = Change(*(str(s.get(f, "")) for f in KEY_FIELDS), old=old, new=cur, tolerance=tol, better=better,
                         kind=kind, scene_changed=changed)
             {"regression": regs, "improvement": imps, "unstable": unst}[kind].append(ch)
@@ -234,5 +248,5 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
                                                                  alpha=alpha_fw)["changed"] is not False):
                 strong.append(ch)
     tasks = {s["task"] for s in scores}
-    missing = sorted(k for k, b in entries.items() if b["task"] in tasks and k not in seen)
+    missing = sorted(k for k in entries if k.split("|", 1)[0] in tasks and k not in seen)
     return Comparison(regs, imps, missing, new, len(seen), list(changed_versions), unst, no_noise, strong)

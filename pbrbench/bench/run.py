@@ -114,10 +114,13 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
         src = worker_source(source)
         with RENDER_LOCK, blas_threads(job_threads()):
             gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
+            for g in gts.values():
+                g.reads.clear()      # what this job reads (a replicate that changes none of it is not rescored)
             result = task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
             reps = {}
             if uncertainty and result.scores:
-                reps = replicate_scores(task, job, gts, seed=seed, algorithms=algorithms, quality=quality)
+                reps = replicate_scores(task, job, gts, seed=seed, algorithms=algorithms, quality=quality,
+                                        full=result.scores)
         scores = attach(_check_scores(job, result.scores), reps)
         files, manifest = job_figures(result, job_dir)
         error = None
@@ -335,4 +338,16 @@ def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks:
         seeds.append({"seed": c.seed, "render_seed": c.render_seed})
     data = regress.build_baselines(runs, quality=cfg.quality, seeds=seeds,
                                    note=f"runs {first.run_id} (+{regress.N_SEEDS - 1} seeds)")
+    if cfg.tasks:   # only these tasks were rerun: the other tasks' entries stay as they were
+        try:
+            old = regress.load_baselines(path)
+        except UserError:
+            old = None
+        if old is not None and old.get("seeds") == data["seeds"]:
+            ran = set(cfg.tasks)
+            for name in ("entries", "scene_hashes", "algorithm_versions"):
+                keep = {k: v for k, v in old.get(name, {}).items()
+                        if (k.split("|", 1)[0] if name == "entries" else k.split("/", 1)[0]) not in ran}
+                data[name] = {**keep, **data[name]} if name != "scene_hashes" else {**old.get(name, {}), **data[name]}
+            data["note"] = f"{old.get('note', '')}; tasks {', '.join(sorted(ran))}: {data['note']}"
     return regress.write_baselines(data, path)

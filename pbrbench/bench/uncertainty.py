@@ -39,19 +39,29 @@ def _values(scores) -> dict:
     return out
 
 
-def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality) -> dict[str, dict]:
+def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None) -> dict[str, dict]:
     """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: value}}`` for the job's
     scores (keys ``(scene, algorithm, metric)``); parts that cannot be computed (a ground truth
-    without its sample groups, a job whose inputs do not depend on the seed) are absent."""
+    without its sample groups, a job whose inputs do not depend on the seed) are absent.
+
+    ``full``: the job's scores on the full ground truths, scored just before on ``gts`` (whose
+    :attr:`~pbrbench.render.groundtruth.GroundTruth.reads` then name every array the job read): a
+    replicate that changes none of those arrays is the same input, and its values are ``full``'s
+    without scoring it again (a job on analytic or noise-free passes costs one scoring)."""
     out: dict[str, dict] = {}
+    if full is not None and not isinstance(full, dict):
+        full = _values(full)
     groups = {getattr(g, "groups", 0) for g in gts.values()}
     if all(getattr(g, "has_replicates", False) for g in gts.values()) and len(groups) == 1:
         (G,) = groups
         reps: dict = {}
         for i in range(G):
-            loo = {n: g.replicate(i) for n, g in gts.items()}
-            res = task.run_job(job, loo, seed=seed, algorithms=algorithms, quality=quality)
-            for k, v in _values(res.scores).items():
+            if full is not None and not any(g.varies(i) for g in gts.values()):
+                vals = full          # the job read nothing this replicate changes: the same inputs, the same scores
+            else:
+                loo = {n: g.replicate(i) for n, g in gts.items()}
+                vals = _values(task.run_job(job, loo, seed=seed, algorithms=algorithms, quality=quality).scores)
+            for k, v in vals.items():
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
     if task.seed_dependent(job):

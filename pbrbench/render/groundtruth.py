@@ -40,11 +40,12 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 8  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 9  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
-AOV_REPLICATED = ("albedo", "normals", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
+AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
 SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)
 SEED_MOD = 1 << 32   # Mitsuba's seeds are 32-bit
+OBJECT_ID_SEED = 0   # the one-sample object-id pass: the same for every render seed
 JK = "_jk"         # ``<name>_jk<i>``: the delete-one-group deviation of ``<name>`` for group ``i``
 
 
@@ -100,8 +101,10 @@ class GroundTruth:
 
     arrays: dict[str, np.ndarray]
     meta: dict = field(default_factory=dict)
+    reads: set = field(default_factory=set, repr=False, compare=False)   # names read (see :meth:`varies`)
 
     def __getitem__(self, name: str) -> np.ndarray:
+        self.reads.add(name)
         try:
             return self.arrays[name]
         except KeyError:
@@ -172,11 +175,33 @@ class GroundTruth:
 
     def light_stack(self, kind: str = "radiance") -> np.ndarray:
         """(K, H, W, 3) per-light images of the light set (``kind`` = radiance or direct)."""
-        return np.stack([self.arrays[f"light{k:02d}.{kind}"] for k in range(self.n_lights)])
+        names = [f"light{k:02d}.{kind}" for k in range(self.n_lights)]
+        self.reads.update(names)
+        return np.stack([self.arrays[n] for n in names])
 
     @property
     def mask(self) -> np.ndarray:
+        self.reads.add("mask")
         return self.arrays["mask"] > 0.5
+
+    def varies(self, group: int, names=None) -> bool:
+        """Whether the replicate without ``group`` differs from this ground truth in any of
+        ``names`` (default: the arrays read since the last :meth:`reads.clear`): a replicate
+        that does not is the same input, so a job that read only those arrays scores the same on
+        it (:mod:`pbrbench.bench.uncertainty` then reuses the full score)."""
+        names = set(self.reads if names is None else names)
+        base = set()
+        for n in names:
+            n = n[:-3] if n.endswith("_sd") else n
+            base |= set(DERIVED.get(n, (n,)))
+        for n in base:
+            d = self.arrays.get(f"{n}{JK}{group}")
+            if d is not None and np.any(d != 0):
+                return True
+        return False
+
+
+DERIVED = {"indirect": ("radiance", "direct"), "unoccluded_fraction": ("direct", "direct_unoccluded")}
 
 
 def versions() -> dict:
@@ -268,7 +293,7 @@ class _Renderer:
     def aovs(self) -> dict[str, np.ndarray]:
         """The AOVs (albedo, normals, position, depth, coverage) as the mean of ``G`` sample
         groups with their own seeds, with the delete-one-group deviations of albedo, normals,
-        depth, coverage and the pure mask (footprint averages are Monte Carlo estimates too: at a
+        position, depth, coverage and the pure mask (footprint averages are Monte Carlo estimates too: at a
         curved or tilted surface, and at a silhouette, they move with the samples); plus the
         object ids and the pure-pixel mask."""
         mi = self.mi
@@ -322,11 +347,19 @@ class _Renderer:
 
         cov, alb, n_cam, pos, depth = derived(mean_of(films))
         loo = [derived(mean_of(films[:i] + films[i + 1:])) for i in range(G)]
-        obj_avg = np.where(np.all([o == obj_avg[0] for o in obj_avg], axis=0), obj_avg[0], -1)
-        # object ids from a one-sample pass (ids must not be averaged across an edge)
+        def agreed(ids):   # a shape index every group saw alone (no mixture in the pixel in any group)
+            return np.where(np.all([o == ids[0] for o in ids], axis=0), ids[0], -1)
+
+        obj_loo = [agreed(obj_avg[:i] + obj_avg[i + 1:]) for i in range(G)]
+        obj_avg = agreed(obj_avg)
+        # object ids from a one-sample pass (ids must not be averaged across an edge), with a fixed
+        # seed: the map of pixels to shapes is a function of the geometry, not a Monte Carlo estimate,
+        # so the pure mask moves with the render seed only through the coverage, which every
+        # replicate has its own of (a seed-dependent id pass moved it between render seeds in a way
+        # no replicate saw: SFS scores 5x their standard error apart)
         integ1 = {"type": "aov", "aovs": "si:shape_index"}
         scene = mi.load_dict(scene_dict(mi, self.spec, self.res, 1, integrator=integ1, sampler="independent"), optimize=False)
-        mi.render(scene, seed=self.seed, spp=1)
+        mi.render(scene, seed=OBJECT_ID_SEED, spp=1)
         obj = np.maximum(self._object_ids(scene, _film_arrays(scene)["si.I"]), 0)
         del scene
         gc.collect()
@@ -344,9 +377,9 @@ class _Renderer:
                "position": pos.astype(np.float32), "depth": depth.astype(np.float32),
                "coverage": cov.astype(np.float32), "mask": pure.astype(np.float32),
                "object_id": obj}
-        for i, (c_i, a_i, n_i, _, d_i) in enumerate(loo):
-            pure_i = (c_i > 0.999) & fixed
-            for name, full, rep in (("albedo", alb, a_i), ("normals", n_cam, n_i), ("depth", depth, d_i),
+        for i, (c_i, a_i, n_i, p_i, d_i) in enumerate(loo):
+            pure_i = (c_i > 0.999) & same & (obj > 0) & (obj_loo[i] == obj)
+            for name, full, rep in (("albedo", alb, a_i), ("normals", n_cam, n_i), ("position", pos, p_i), ("depth", depth, d_i),
                                     ("coverage", cov, c_i), ("mask", pure.astype(np.float64), pure_i.astype(np.float64))):
                 out[f"{name}{JK}{i}"] = (rep - full).astype(np.float32)
         return out

@@ -7,9 +7,10 @@ difference of the two means divided by its standard error, a p-value per pixel a
 family-wise significance level ``alpha`` split over all the tests (Bonferroni or Šidák), so that
 an unbiased render fails with probability at most ``alpha`` however many pixels it has.
 
-Variance estimates.  The ground truth stores ``*_sd``: the standard deviation of each pixel's
-estimate from two half-sample renders, a one-degree-of-freedom estimate.  A t statistic with one
-degree of freedom is Cauchy-tailed and has almost no power, so the variance is pooled over a
+Variance estimates.  The ground truth gives ``*_sd``: the standard deviation of each pixel's
+estimate from its ``G`` sample groups, a ``G - 1``-degree-of-freedom estimate (taken here as one
+degree of freedom, which keeps the test conservative).  A t statistic with so few degrees of
+freedom is heavy-tailed and has little power, so the variance is pooled over a
 ``pool`` x ``pool`` neighbourhood (noise varies slowly across an image); the pooled estimate has
 about ``pool**2`` degrees of freedom per image and the two images' variances combine by the
 Welch-Satterthwaite rule.  p-values come from Student's t distribution with those degrees of freedom.
@@ -115,8 +116,8 @@ def compare_images(image, ref_mean, ref_sd, *, image_sd=None, alpha: float = 0.0
         Tolerance for zero-variance pixels.
     rtol : float, keyword-only
         Floor on the standard error relative to ``|ref_mean|`` (added in quadrature): float32
-        accumulation and stratified samplers leave deterministic errors of ~1e-6 that two
-        half-sample renders cannot see (they can agree to 1e-7 with a multijitter sampler).
+        accumulation and stratified samplers leave deterministic errors of ~1e-6 that the
+        sample groups cannot see (they can agree to 1e-7 with a multijitter sampler).
     diagnostics_dir : path, optional
         On failure, write ``<name>_image.png``, ``<name>_reference.png`` and ``<name>_t.png``
         (t map with a colour bar) and ``<name>.txt`` there.

@@ -220,7 +220,7 @@ TIME_SHARE = 0.15   # an algorithm above this share of the job time needs a reas
 
 def algorithm_time(scores: list[dict], info: dict) -> list[dict]:
     """Seconds per (task, algorithm) summed over jobs (one score per job and algorithm counts;
-    the time of the half-sample replicates is not in the scores), the share of the total, and,
+    the time of the delete-one-group replicates is not in the scores), the share of the total, and,
     above :data:`TIME_SHARE`, the reason the task gives (its ``cost_notes``)."""
     per: dict[tuple[str, str], float] = defaultdict(float)
     seen = set()

@@ -24,7 +24,7 @@ cap on its own, where the visibility term is exactly 1); the direct term always 
 
 Each scene's solution is computed once per process and kept (memoised by the spec's content hash
 and the patch size; at most :data:`MEMO_SIZE` scenes), so the models of one scene, and the
-benchmark's rescoring of a job on the two half-sample renders, share it.
+benchmark's rescoring of a job on its delete-one-group replicates, share it.
 
 References
 ----------

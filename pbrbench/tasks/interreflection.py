@@ -153,7 +153,7 @@ class InterreflectionTask(Task):
         domain = visible_surface(gt)
         book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
         res = JobResult(job)
-        figures = base == "global" and gt.meta.get("replicate") is None  # not again on the half-sample replicates
+        figures = base == "global" and gt.meta.get("replicate") is None  # not again on the delete-one-group replicates
         if figures:
             res.images[f"linear:path tracer ({base})"] = C.display(ref)
         shown = {}   # figures: the first baseline and the last method (the converged model among the built-ins)

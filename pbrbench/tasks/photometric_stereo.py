@@ -62,7 +62,7 @@ NOISE = 0.01
 INVERSE_FAMILIES = ("ps_groove", "ps_cup", "ps_cap")   # concave: where every local method is biased
 SHORT_INVERSE_FAMILIES = ("ps_groove",)
 INVERSE_APPLIES = ("global", "local")  # the transports the methods model (not area sources)
-# where the benchmark runs them: global alone (three half-sample calls of 1.5-2 min each per job;
+# where the benchmark runs them: global alone (five calls of 1.5-2 min each per job: the images and the four delete-one-group replicates;
 # their local results are measured in docs/inverse.md)
 INVERSE_CONDITIONS = ("global",)
 SHORT_INVERSE_CONDITIONS = ("global",)
@@ -142,8 +142,8 @@ class PhotometricStereoTask(Task):
     cost_notes = {
         "inverse:mitsuba_prb": "analysis by synthesis: Adam over a height field and an albedo texture, each "
                                "iteration a Mitsuba render of every light and its gradient (about 59 M camera "
-                               "paths per call at standard), called three times per job (the two half-sample "
-                               "replicates); run on three scenes only (docs/inverse.md)",
+                               "paths per call at standard), called five times per job (the images and the four "
+                               "delete-one-group replicates); run on three scenes only (docs/inverse.md)",
     }
 
     # ------------------------------------------------------------------------- algorithms

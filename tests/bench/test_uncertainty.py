@@ -215,3 +215,35 @@ def test_predicted_standard_errors_match_the_spread_over_render_seeds(tmp_path):
     pooled = math.sqrt(float(np.mean(ratios)))
     print(f"observed / predicted standard error, pooled over {len(ratios)} scores: {pooled:.2f}")
     assert 0.5 < pooled < 2.0, pooled
+
+
+def test_a_replicate_that_changes_nothing_the_job_read_is_not_scored_again():
+    """A job that reads only arrays without Monte Carlo noise (here the exact 'albedo') gets its
+    replicates from the full score without rescoring; one that reads a noisy pass is rescored."""
+    rng = np.random.default_rng(4)
+    truth = rng.uniform(0.2, 1.0, (8, 8, 3))
+    calls = []
+
+    class Reads(ErrorTask):
+        array = "albedo"
+
+        def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
+            calls.append(gts["s"].meta.get("replicate"))
+            book = C.ScoreBook(job, "x", algorithms)
+            for alg in algorithms:
+                book.add(alg.name, {"height_rmse": float(np.mean(gts["s"][self.array]))}, 0.0)
+            return JobResult(job, scores=book.scores)
+
+    for array, rescored in (("albedo", False), ("radiance", True)):
+        task = Reads()
+        task.array = array
+        algs = builtin_registry({task.name: task}).for_task(task.name)
+        gts = {"s": noisy_gt(truth, 0.05, rng)}
+        job = task.jobs(None)[0]
+        calls.clear()
+        gts["s"].reads.clear()
+        res = task.run_job(job, gts, algorithms=algs)
+        reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores)
+        (v,) = reps["replicates"].values()
+        assert calls == ([None, 0, 1, 2, 3] if rescored else [None])
+        assert (len(set(v)) > 1) == rescored and (rescored or v == [res.scores[0].value] * G)

@@ -1,0 +1,76 @@
+"""Does the jackknife bias correction move a score toward the value at more samples?
+
+    python scripts/bias_check.py [--factor 4] [--cache DIR] [--scene TASK=SCENE ...]
+
+Renders the scenes at draft quality and at ``factor`` times draft's samples (same resolution),
+scores every job of the tasks on them, and for every headline-metric cell (job, algorithm) whose
+two values differ beyond float32 rounding counts whether the bias-corrected 1x value
+``v - bias`` is closer to the ``factor``x value than the uncorrected one.  Prints the fraction
+and the cells.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import sys
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--factor", type=float, default=4.0)
+    ap.add_argument("--cache", default=None)
+    ap.add_argument("--scene", action="append", default=None, metavar="TASK=SCENE")
+    a = ap.parse_args(argv)
+    pairs = [s.split("=", 1) for s in (a.scene or ["photometric_stereo=ps_groove[albedo=0.9]",
+                                                   "photometric_stereo=ps_cup[albedo=0.9]", "sfs=sfs_vase",
+                                                   "sfs=sfs_sphere"])]
+    from pbrbench.bench.plan import load_tasks
+    from pbrbench.bench.run import execute_job
+    from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.registry import builtin_registry
+    from pbrbench.render import quality as Q
+    from pbrbench.render.cache import RenderCache
+
+    draft = Q.PRESETS["draft"]
+    more = dataclasses.replace(draft, name=f"draft{a.factor:g}x", spp_scale=draft.spp_scale * a.factor,
+                               description=f"draft resolution, {a.factor:g}x draft's samples (scripts/bias_check.py)")
+    Q.PRESETS[more.name] = more      # the render layer looks profiles up by name
+    tasks = load_tasks(sorted({t for t, _ in pairs}))
+    reg = builtin_registry(tasks)
+    vals = {}
+    for q in (draft, more):
+        src = GroundTruthSource(q, cache=RenderCache(a.cache) if a.cache else None)
+        for tname, scene in pairs:
+            task = tasks[tname]
+            for job in [j for j in task.jobs(draft) if j.scene.split(":")[0] == scene and j.param("plot") is None]:
+                res = execute_job(task, job, src.specs([job.scene, *job.extra_scenes]), src, 0, "j",
+                                  reg.for_task(tname), q)
+                if res["error"]:
+                    print(res["error"], file=sys.stderr)
+                    return 1
+                for s in res["scores"]:
+                    if s["metric"] == task.headline_metric:
+                        vals.setdefault((job.key, s["algorithm"]), {})[q.name] = s
+        print(f"{q.name} done", file=sys.stderr, flush=True)
+    better, n, jobs = 0, 0, set()
+    for (key, alg), d in sorted(vals.items()):
+        if len(d) < 2:
+            continue
+        s1, s4 = d[draft.name], d[more.name]
+        v1, b1, v4 = s1["value"], s1.get("bias"), s4["value"]
+        if b1 is None or b1 != b1 or abs(v1 - v4) <= 1e-5 + 1e-4 * abs(v4):
+            continue
+        n += 1
+        jobs.add(key)
+        ok = abs(v1 - b1 - v4) < abs(v1 - v4)
+        better += ok
+        print(f"{'closer' if ok else 'farther'}  {alg:30s} 1x {v1:9.4g}  bias {b1:+9.3g}  corrected {v1 - b1:9.4g}  "
+              f"{a.factor:g}x {v4:9.4g}   {key[:70]}")
+    print(f"bias-corrected 1x closer to {a.factor:g}x in {better} of {n} cells ({100 * better / max(n, 1):.0f} %), "
+          f"{len(jobs)} jobs")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
