@@ -112,6 +112,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
     c0 = time.process_time()
     try:
         src = worker_source(source)
+        _form_factor_cache(src)
         with RENDER_LOCK, blas_threads(job_threads()):
             gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
             for g in gts.values():
@@ -129,6 +130,15 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
         error = traceback.format_exc(limit=8)
     return {"key": job.key, "task": job.task, "scores": scores, "files": files, "manifest": manifest,
             "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "error": error}
+
+
+def _form_factor_cache(source) -> None:
+    """The radiosity models' form factors live beside the render cache (``form_factors/``)."""
+    root = getattr(getattr(source, "cache", None), "root", None)
+    if root is not None:
+        from pbrbench.shading.forward_models import set_disk_cache
+
+        set_disk_cache(Path(root) / "form_factors")
 
 
 def _render_task(source, spec) -> tuple[str, dict, bool]:

@@ -121,8 +121,11 @@ def run(args) -> int:
                     check=args.check, update_baselines=args.update_baselines, algorithms=list(args.algorithm),
                     algorithm_time_limit=limit, entry_points=not args.no_plugins)
     o = run_benchmark(cfg, settings=st)
+    from pbrbench.progress import peak_memory_mib
+
     print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
-          f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s")
+          f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s, "
+          f"peak memory {peak_memory_mib():.0f} MiB")
     for line in summary_lines(o):
         print(line)
     for line in failure_lines(o.scores):

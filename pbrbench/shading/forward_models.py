@@ -24,7 +24,11 @@ cap on its own, where the visibility term is exactly 1); the direct term always 
 
 Each scene's solution is computed once per process and kept (memoised by the spec's content hash
 and the patch size; at most :data:`MEMO_SIZE` scenes), so the models of one scene, and the
-benchmark's rescoring of a job on its delete-one-group replicates, share it.
+benchmark's rescoring of a job on its delete-one-group replicates, share it.  The form-factor
+matrix, the costly part, is also kept on disk when a folder is set (:func:`set_disk_cache`; the
+benchmark sets ``<render cache>/form_factors``), keyed by the scene's geometry (its canonical
+description without the render settings: a re-seeded render shares it), the patch size and
+:data:`VERSION`, so a second run, or a render seed, does not solve it again.
 
 References
 ----------
@@ -56,9 +60,12 @@ __all__ = [
     "predict_radiance",
     "MODELS",
     "MEMO_SIZE",
+    "set_disk_cache",
+    "geometry_hash",
 ]
 
 VERSION = "1"
+FF_FORMAT = 1        # bump when the form factors of a mesh change (invalidates the disk cache)
 MEMO_SIZE = 6
 MESH_MEMO_SIZE = 3   # form-factor matrices kept (dense: N^2 doubles each)
 DEFAULT_CELLS = 16
@@ -324,7 +331,71 @@ class SceneModel:
 
 
 _MEMO: OrderedDict = OrderedDict()
-_MESH: OrderedDict = OrderedDict()   # (mesh, form factors, visibility flag) by (content hash, patch size)
+_MESH: OrderedDict = OrderedDict()   # (mesh, form factors, visibility flag) by (geometry hash, patch size)
+_DISK: dict = {"dir": None}
+
+
+def set_disk_cache(directory) -> None:
+    """Keep form-factor matrices in ``directory`` (None: only in memory)."""
+    from pathlib import Path
+
+    _DISK["dir"] = Path(directory) if directory is not None else None
+
+
+def geometry_hash(spec) -> str:
+    """sha256 of what the mesh and its form factors depend on: the scene without its render
+    settings (resolution, samples, seed), plus the bytes of the files it reads."""
+    import hashlib
+    import json
+
+    d = spec.canonical()
+    d.pop("render", None)
+    h = hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":"), default=str).encode())
+    for p in spec.referenced_files():
+        with open(p, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()
+
+
+def _disk_path(spec, patch_size: float):
+    d = _DISK["dir"]
+    if d is None:
+        return None
+    return d / f"{geometry_hash(spec)[:32]}-{patch_size:.9g}-v{VERSION}.{FF_FORMAT}.npz"
+
+
+def _load_form_factors(path, n: int):
+    """(F, visibility) from ``path``, or None when absent, unreadable or for another mesh size."""
+    if path is None or not path.is_file():
+        return None
+    import zipfile
+
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            F, vis = z["F"], bool(z["visibility"])
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None     # truncated or foreign: solved again
+    return (F, vis) if F.shape == (n, n) else None
+
+
+def _save_form_factors(path, F, vis: bool) -> None:
+    """Write atomically; a full or read-only disk only costs the cache (never the run)."""
+    import os
+    import tempfile
+
+    if path is None:
+        return
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, F=F, visibility=np.bool_(vis))
+        os.replace(tmp, path)
+    except OSError:
+        try:
+            os.unlink(tmp)
+        except (OSError, UnboundLocalError):
+            pass
 _INDEX: OrderedDict = OrderedDict()
 
 
@@ -351,14 +422,20 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
         _MEMO.move_to_end(key)
         return _MEMO[key]
     t0 = time.process_time()
-    mkey = key[:2]   # the mesh and its form factors do not depend on the lights' sampling
+    mkey = (geometry_hash(spec), key[1])   # the mesh and its form factors depend on neither the lights' sampling nor the render
     if mkey in _MESH:
         _MESH.move_to_end(mkey)
         patches, F, vis = _MESH[mkey]
     else:
         patches = model_patches(spec, patch_size)
-        vis = needs_visibility(spec)
-        F = form_factor_matrix(patches, visibility=vis)
+        path = _disk_path(spec, patch_size)
+        got = _load_form_factors(path, len(patches))
+        if got is not None:
+            F, vis = got
+        else:
+            vis = needs_visibility(spec)
+            F = form_factor_matrix(patches, visibility=vis)
+            _save_form_factors(path, F, vis)
         _remember(_MESH, mkey, (patches, F, vis), size=MESH_MEMO_SIZE)
     E = direct_radiosity(spec, patches, shadows=True, area_samples=area_samples)
     sol = solve_radiosity(F, patches.albedo, E, method="jacobi", max_bounces=max_bounces, tol=tol)

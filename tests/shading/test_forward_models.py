@@ -86,3 +86,37 @@ def test_bad_arguments_are_refused():
         FM.scene_model(spec, cells=0)
     with pytest.raises(ValueError, match="sphere"):
         FM.predict_radiance(lib("sphere_5lights"), (8, 8))
+
+
+def test_form_factors_are_kept_on_disk_by_geometry_and_survive_a_new_process(tmp_path, monkeypatch):
+    from pbrbench.bench.source import reseeded
+    from pbrbench.shading import form_factor_matrix as FFM
+
+    spec = lib("room_white")
+    FM.set_disk_cache(tmp_path / "ff")
+    try:
+        FM._MEMO.clear()
+        FM._MESH.clear()
+        first = FM.scene_model(spec, cells=4)
+        (f,) = list((tmp_path / "ff").iterdir())
+        assert f.suffix == ".npz" and FM.geometry_hash(spec)[:32] in f.name
+        # a fresh process (memo empty) and a re-seeded render of the same geometry: read, not solved
+        FM._MEMO.clear()
+        FM._MESH.clear()
+
+        def boom(*a, **k):
+            raise AssertionError("form factors solved again")
+
+        monkeypatch.setattr(FFM, "form_factor_matrix", boom)
+        again = FM.scene_model(reseeded(spec, 5), cells=4)
+        np.testing.assert_array_equal(again.bounce(None), first.bounce(None))
+        # a truncated file is ignored (solved again), never an error
+        f.write_bytes(f.read_bytes()[:100])
+        FM._MEMO.clear()
+        FM._MESH.clear()
+        monkeypatch.undo()
+        np.testing.assert_array_equal(FM.scene_model(spec, cells=4).bounce(None), first.bounce(None))
+    finally:
+        FM.set_disk_cache(None)
+        FM._MEMO.clear()
+        FM._MESH.clear()
