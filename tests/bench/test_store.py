@@ -169,3 +169,31 @@ def test_perf_rows_become_scores():
     assert [direction(r) for r in rows] == ["lower", "higher", "higher"]
     s = to_scores(rows, 1.0)
     assert s[0]["task"] == "perf" and s[0]["scene"] == "b:c" and s[0]["algorithm"] == "m" and s[0]["unit"] == "s"
+
+
+def test_compare_uses_the_noise_rule_reads_two_stores_and_names_changed_scenes(tmp_path, capsys):
+    from pbrbench.cli.compare import differences
+    from pbrbench.cli.main import main
+
+    def noisy(metric, value, se, **kw):
+        reps = [value + se * d for d in (-1.2, 0.4, 0.9, -0.1)]
+        return dict(score(metric, value, **kw), uncertainty=se, dof=3, replicates=reps)
+
+    a = [noisy("within", 10.0, 0.1), noisy("beyond", 10.0, 0.1), score("rounding", 1e-6), noisy("flip", 3.1, 0.01)]
+    b = [noisy("within", 10.25, 0.1), noisy("beyond", 12.0, 0.1), score("rounding", 4e-6),
+         dict(noisy("flip", 5.8, 0.01), unstable=True)]
+    d = {r["metric"]: r for r in differences(a, b)}
+    # 0.25 is 1.8 combined SE: inside t(0.995, 6) * 0.1 * sqrt(2) = 0.52; 2.0 is far outside
+    assert d["within"]["direction"] == "same" and d["beyond"]["direction"] == "worse"
+    assert d["within"]["limit"] == pytest.approx(3.707 * 0.1 * 2 ** 0.5 + 1e-5 + 1e-4 * 10, rel=1e-3)
+    assert d["rounding"]["direction"] == "same" and d["flip"]["direction"] == "unstable"
+    pa, pb = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
+    with Store(pa) as s:
+        ra = s.create_run(quality="draft", env=ENV)
+        s.add_job_result(ra, "k", "t", a)
+    with Store(pb) as s:
+        rb = s.create_run(quality="draft", env=ENV)
+        s.add_job_result(rb, "k", "t", [dict(x, scene_hash="other") for x in b])
+    assert main(["compare", ra, rb, "--store", str(pa), "--store-b", str(pb)]) == 0
+    out = capsys.readouterr().out
+    assert "1 worse" in out and "1 unstable" in out and "different content hashes" in out and "[scene changed]" in out
