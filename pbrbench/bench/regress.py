@@ -79,12 +79,16 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
         fin = [v for v in vals if math.isfinite(v)]
         n = len(fin)
         mean = sum(fin) / n if n else float("nan")
-        parts = [(_unc(x), dof_of(x)) for x in ss if _unc(x) is not None]
+        within = [(_unc(x), dof_of(x)) for x in ss if _unc(x) is not None]
+        parts = list(within)
+        between = None
         if n > 1:
-            var = sum((v - mean) ** 2 for v in fin) / (n - 1)
-            parts.append((math.sqrt(var), n - 1))
+            between = sum((v - mean) ** 2 for v in fin) / (n - 1)
+            parts.append((math.sqrt(between), n - 1))
         sd, dof = pooled_sd(*parts)
-        flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0)
+        flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0) or _spread_too_wide(between, n, within)
+        if flips and between is not None and finite(sd):
+            sd = max(sd, math.sqrt(between))
         e = {"value": _sig(mean) if n == len(vals) else None, "sd": _sig(sd), "dof": round(dof, 2),
              "n_seeds": len(vals)}
         if s.get("better", "lower") != "lower":
@@ -106,6 +110,28 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
             "fields": "entries: 'task|scene|condition|algorithm|metric' -> value (mean over the seeds), sd and dof "
                       "(one run's noise), n_seeds, better (when not 'lower'), unstable (when the replicates were "
                       "bimodal); scene_hashes: the first 16 hex digits of each scene's content hash"}
+
+
+SPREAD_ALPHA = 1e-3   # the spread over the seeds is wider than the jackknife allows at this level: bimodal
+
+
+def _spread_too_wide(between, n: int, within) -> bool:
+    """Whether the variance of the score over ``n`` render seeds exceeds what the runs' own
+    jackknife variances predict (an F test at :data:`SPREAD_ALPHA`): the score jumps between
+    render seeds in a way no run's replicates see (a discrete choice that differs between renders
+    but not between one render's sample groups)."""
+    if between is None or n < 2 or not within:
+        return False
+    w = [(se, d) for se, d in within if finite(se) and d > 0]
+    if not w:
+        return False
+    mean_within = sum(se * se for se, _ in w) / len(w)
+    dof_w = sum(d for _, d in w)
+    if mean_within <= 0:
+        return math.sqrt(between) > 1e-5   # noise-free runs that still differ beyond rounding
+    from scipy import stats
+
+    return between / mean_within > float(stats.f.ppf(1 - SPREAD_ALPHA, n - 1, dof_w))
 
 
 def unstable_of(s: dict) -> bool:

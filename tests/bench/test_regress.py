@@ -141,3 +141,21 @@ def test_changed_scene_is_named_in_the_message():
     assert c.regressions[0].scene_changed and "scene file changed" in str(c.regressions[0])
     c2 = regress.compare([dict(s(2.0), scene_hash="aaa")], b)
     assert not c2.regressions[0].scene_changed
+
+
+def test_a_score_that_jumps_between_render_seeds_is_unstable_in_the_baseline():
+    # each run's own replicates agree (SE 0.1), but the runs land on 0.3 or 0.7: a discrete choice
+    # that differs between renders; the check lists it apart instead of crying regression
+    runs = [[s(v, uncertainty=0.01, dof=3)] for v in (0.32, 0.74, 0.31, 0.73)]
+    b = regress.build_baselines(runs, quality="draft", seeds=list(range(4)))
+    e = b["entries"]["t|a|local|m|rmse"]
+    assert e["unstable"] and e["sd"] >= 0.2
+    c = regress.compare([s(0.74, uncertainty=0.01, dof=3)], b)
+    assert not c.regressions and c.ok
+    # Gaussian spreads are not flagged
+    rng = np.random.default_rng(11)
+    flagged = 0
+    for _ in range(300):
+        runs = [[measured(rng, 5.0, 0.2, **s(0))] for _ in range(4)]
+        flagged += bool(regress.build_baselines(runs, quality="draft", seeds=[0, 1, 2, 3])["entries"]["t|a|local|m|rmse"].get("unstable"))
+    assert flagged <= 3
