@@ -35,7 +35,7 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from pbrbench.uncertainty import ALPHA, change, dof_of, finite, pooled_sd, unstable
+from pbrbench.uncertainty import ALPHA, change, dof_of, finite, pooled_sd, rounding, unstable
 
 N_SEEDS = 4
 FORMAT = 2
@@ -86,7 +86,7 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
             between = sum((v - mean) ** 2 for v in fin) / (n - 1)
             parts.append((math.sqrt(between), n - 1))
         sd, dof = pooled_sd(*parts)
-        flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0) or _spread_too_wide(between, n, within)
+        flips = any(unstable_of(x) for x in ss) or (n != len(vals) and n > 0) or _spread_too_wide(between, n, within, mean)
         if flips and between is not None and finite(sd):
             sd = max(sd, math.sqrt(between))
         e = {"value": _sig(mean) if n == len(vals) else None, "sd": _sig(sd), "dof": round(dof, 2),
@@ -115,20 +115,20 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
 SPREAD_ALPHA = 1e-3   # the spread over the seeds is wider than the jackknife allows at this level: bimodal
 
 
-def _spread_too_wide(between, n: int, within) -> bool:
+def _spread_too_wide(between, n: int, within, mean: float = 0.0) -> bool:
     """Whether the variance of the score over ``n`` render seeds exceeds what the runs' own
     jackknife variances predict (an F test at :data:`SPREAD_ALPHA`): the score jumps between
     render seeds in a way no run's replicates see (a discrete choice that differs between renders
     but not between one render's sample groups)."""
-    if between is None or n < 2 or not within:
-        return False
+    if between is None or n < 2 or not within or math.sqrt(between) <= rounding(mean):
+        return False     # spreads of float32 rounding are never a jump
     w = [(se, d) for se, d in within if finite(se) and d > 0]
     if not w:
         return False
     mean_within = sum(se * se for se, _ in w) / len(w)
     dof_w = sum(d for _, d in w)
     if mean_within <= 0:
-        return math.sqrt(between) > 1e-5   # noise-free runs that still differ beyond rounding
+        return True      # noise-free runs that still differ beyond rounding
     from scipy import stats
 
     return between / mean_within > float(stats.f.ppf(1 - SPREAD_ALPHA, n - 1, dof_w))

@@ -63,11 +63,12 @@ def summary_lines(outcome) -> list[str]:
     for h in headline_tables(outcome.scores, outcome.task_info):
         conds = h["conditions"]
         w = max([len("algorithm")] + [len(r["algorithm"]) for r in h["rows"]])
-        texts = [[(f"({c['text']})" if c.get("cls") == "ns" else c["text"]) + (" !" if c["mark"] == "regression" else "")
+        texts = [[(f"({c['text']})" if "ns" in c.get("cls", "").split() else c["text"]) + (" !" if c["mark"] == "regression" else "")
                   for c in r["cells"]] for r in h["rows"]]
         cw = [max([len(c)] + [len(t[i]) for t in texts]) + 2 for i, c in enumerate(conds)]
         lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; {h['reference']} and the cost of each "
-                     "effect, mean over matched scenes ± 1 SE; ( ) = within 2 SE of zero; ! = regression)")
+                     "effect, mean over matched scenes ± 1 SE; ( ) = inside the 95 % t interval of zero; "
+                     "\"bias\": noise-limited, |Monte Carlo bias| > SE; ! = regression)")
         lines.append("  " + "algorithm".ljust(w) + "".join(c.rjust(cw[i]) for i, c in enumerate(conds)))
         for r, t in zip(h["rows"], texts, strict=True):
             lines.append("  " + r["algorithm"].ljust(w) + "".join(x.rjust(cw[i]) for i, x in enumerate(t)))
