@@ -27,7 +27,7 @@ lint: $(STAMP)
 render: $(STAMP)
 	$(VENV)/bin/pbrbench render --all --quality standard
 
-# The lock: pyproject.toml's dependencies with the dev and distributed extras, plus the set-up's
+# The lock: pyproject.toml's dependencies with the dev, distributed and peers extras, plus the set-up's
 # own tools (uv, pip; setuptools and wheel, which build the editable pbrbench), resolved for the
 # supported platform, every file's sha256 recorded.  `make lock` moves every package to the newest
 # version pyproject.toml allows; `make lock LOCK_UPGRADE=` keeps the current pins where they still
@@ -39,7 +39,7 @@ LOCK_UPGRADE  ?= --upgrade
 
 lock:
 	VENV=$(VENV) bash scripts/setup.sh --uv-only
-	printf '%s\n' $(LOCK_TOOLS) | $(UV) pip compile --quiet pyproject.toml - --extra dev --extra distributed \
+	printf '%s\n' $(LOCK_TOOLS) | $(UV) pip compile --quiet pyproject.toml - --extra dev --extra distributed --extra peers \
 	  --generate-hashes --python-version $(LOCK_PYTHON) --python-platform $(LOCK_PLATFORM) \
 	  --custom-compile-command "make lock" $(LOCK_UPGRADE) -o requirements.lock
 

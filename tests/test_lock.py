@@ -57,7 +57,8 @@ def test_the_checkout_lock_pins_the_set_up():
     p = lock.default_lock_path()
     assert p == ROOT / "requirements.lock"
     pins = lock.parse_lock(p.read_text())
-    for name in ("numpy", "scipy", "mitsuba", "drjit", "openexr", "distributed", "pytest", "uv", "setuptools"):
+    for name in ("numpy", "scipy", "mitsuba", "drjit", "openexr", "distributed", "pytest", "uv", "setuptools",
+                 "opencv-python-headless", "colour-hdri"):   # the peers extra: peer rows, the OpenCV reader test
         assert name in pins, name
     # every pin carries hashes: the set-up installs with --require-hashes
     assert p.read_text().count("--hash=sha256:") >= len(pins)
