@@ -45,6 +45,10 @@ def main(argv):
             bad.append((k, x["value"], y["value"], tol))
     n = len(common)
     print(f"{n - len(bad)} of {n} headline cells agree within 2 combined standard errors ({100 * (n - len(bad)) / max(n, 1):.1f} %)")
+    for task in sorted({k[0] for k in common}):
+        nt = sum(1 for k in common if k[0] == task)
+        bt = sum(1 for k, *_ in bad if k[0] == task)
+        print(f"  {task}: {nt - bt} of {nt} ({100 * (nt - bt) / nt:.1f} %)")
     for k, x, y, tol in bad:
         print(f"  {' / '.join(k)}: {x:.6g} vs {y:.6g} (allowed {tol:.3g})")
     return 0
