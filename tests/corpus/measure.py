@@ -11,16 +11,24 @@ subprocess with its own cache and output directory; the outcome is one of
 - ``accepted`` / ``accepted_black``: exit 0 (``_black``: the ground truth's radiance is all zero);
 - ``timeout``: still running after the time limit (a job far too large started without warning);
 - ``other``: anything else (another exit code, several lines).
+
+``python -m tests.corpus.measure faults|cli [SRC]`` does the same for the disk faults and the
+command-line misuse of ``tests/corpus/test_faults_and_cli.py``.  What several of their cases start
+from (a results store holding one run, a warm render cache, a draft benchmark's scenes and cache)
+is built once, on first use, by :class:`Shared` and copied into each case's directory.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
+import traceback
 from collections import Counter
 from pathlib import Path
 
@@ -49,9 +57,11 @@ def expectations(path: Path) -> dict:
 def child_env(src: Path, env: dict | None = None) -> dict:
     """The environment of a pbrbench child process: this one's without PBRBENCH_* settings and
     without DRJIT_LIBLLVM_PATH (set in this process by its own variant choice, not by the user; a
-    case sets it itself), pbrbench imported from ``src``, then ``env``."""
+    case sets it itself), pbrbench imported from ``src``, then ``env``.  PYTHONSAFEPATH: the
+    child's working directory (the shared temporary directory, where any ``timeit.py`` may lie)
+    is not put first on ``sys.path``."""
     e = {k: v for k, v in os.environ.items() if not k.startswith("PBRBENCH_") and k != "DRJIT_LIBLLVM_PATH"}
-    e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0")
+    e.update(PYTHONPATH=str(src), OPENBLAS_NUM_THREADS="1", PBRBENCH_PROGRESS="0", PYTHONSAFEPATH="1")
     e.update(env or {})
     return e
 
@@ -114,7 +124,9 @@ def measure_scenes(src: Path = ROOT, verbose: bool = False) -> Counter:
 TINY = ('name = "tiny"\ndescription = "a lit sphere"\n[camera]\nhalf_width = 1.1\n[render]\nresolution = 16\nspp = 4\n'
         '[[shapes]]\ntype = "sphere"\n[[lights]]\ntype = "directional"\ndirection = [0.0, 0.0, 1.0]\nirradiance = 3.0\n')
 TINY_HF = TINY.replace('[[shapes]]\ntype = "sphere"\n', '[[shapes]]\ntype = "heightfield"\nsurface = "sphere"\nresolution = 16\n')
-SHARED_CACHE = "/work/ref/dcache/pbrbench"   # read only by these cases (every draft lightness render is there)
+# the benchmark-run cases: the draft lightness task on these families alone (PBRBENCH_SCENES: a
+# directory holding only their library files), every render already in a cache the cases only read
+RUN_FAMILIES = ("mondrian_grey",)
 
 
 def _faulty(kind, under, budget=None):
@@ -128,6 +140,96 @@ def _run(cmd, src, env=None, timeout=300, cwd=None):
         return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, env=e, cwd=cwd or tempfile.gettempdir())
     except subprocess.TimeoutExpired:
         return None
+
+
+class Shared:
+    """What several cases start from, built once (on its first use) below ``root`` with the
+    command line of ``src``, and copied into a case's own directory: a results store holding one
+    run (``tests.fakes.fake_run``), a render cache holding TINY, an ``--out`` holding TINY's
+    render, and a draft lightness benchmark (:data:`RUN_FAMILIES`: its scene directory and its warm
+    cache).  The test session makes one (a session-scoped fixture); ``measure`` makes its own."""
+
+    def __init__(self, root: Path, src: Path = ROOT):
+        self.root, self.src = Path(root), Path(src)
+        self._built: dict[str, Path | AssertionError] = {}
+
+    def _once(self, key: str, build) -> Path:
+        if key not in self._built:
+            d = self.root / key
+            shutil.rmtree(d, ignore_errors=True)
+            d.mkdir(parents=True)
+            try:
+                build(d)
+                self._built[key] = d
+            except AssertionError as e:   # said by every case that needs it, built only once
+                self._built[key] = e
+        got = self._built[key]
+        if isinstance(got, AssertionError):
+            raise AssertionError(f"shared {key}: {got}")
+        return got
+
+    def _render(self, d: Path, args: list[str]):
+        (d / "s.toml").write_text(TINY)
+        r = _run([sys.executable, "-m", "pbrbench", "render", str(d / "s.toml"), "--quality", "draft", "--no-previews",
+                  *args], self.src)
+        assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+
+    def store(self, dest: Path) -> Path:
+        """A copy of the store with one fake run: ``dest/h.sqlite``."""
+        def build(d):
+            r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
+                      "fake_run(Path(sys.argv[1]))", str(d)], self.src)
+            assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+        d = self._once("store", build)
+        dest.mkdir(parents=True, exist_ok=True)
+        for f in d.glob("h.sqlite*"):
+            shutil.copy2(f, dest / f.name)
+        return dest / "h.sqlite"
+
+    def cache(self, dest: Path) -> Path:
+        """A copy of a render cache holding TINY at draft quality."""
+        d = self._once("cache", lambda d: self._render(d, ["--cache", str(d / "cache")]))
+        shutil.copytree(d / "cache", dest)
+        return dest
+
+    def exr_size(self) -> int:
+        """The size of TINY's gt.exr in the cache."""
+        d = self._once("cache", lambda d: self._render(d, ["--cache", str(d / "cache")]))
+        return (next((d / "cache" / "gt").glob("*/*")) / "gt.exr").stat().st_size
+
+    def out(self, dest: Path) -> Path:
+        """A copy of an ``--out`` directory holding TINY's render (no previews)."""
+        def build(d):
+            self.cache(d / "cache")
+            self._render(d, ["--cache", str(d / "cache"), "--out", str(d / "out")])
+        d = self._once("out", build)
+        shutil.copytree(d / "out", dest)
+        return dest
+
+    def run(self) -> tuple[Path, Path]:
+        """(scene directory, render cache) of a draft lightness benchmark on :data:`RUN_FAMILIES`:
+        every render it needs is in the cache (one complete run made them)."""
+        def build(d):
+            (d / "scenes").mkdir()
+            for fam in RUN_FAMILIES:
+                shutil.copy2(self.src / "pbrbench" / "scene" / "library" / f"{fam}.toml", d / "scenes")
+            r = _run([sys.executable, "-m", "pbrbench", "run", "--tasks", "lightness", "--quality", "draft",
+                      "--cache", str(d / "cache"), "--store", str(d / "h.sqlite"), "--out", str(d / "out"),
+                      "--no-report"], self.src, {"PBRBENCH_SCENES": str(d / "scenes")}, cwd=d)
+            assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+        d = self._once("run", build)
+        return d / "scenes", d / "cache"
+
+
+_SHARED: dict[Path, tuple] = {}
+
+
+def shared_for(src: Path) -> Shared:
+    """This process's Shared for ``src`` (in a temporary directory removed at exit)."""
+    if src not in _SHARED:
+        t = tempfile.TemporaryDirectory(prefix="pbrbench-corpus-")
+        _SHARED[src] = (t, Shared(Path(t.name), src))
+    return _SHARED[src][1]
 
 
 def _entries(cache: Path) -> int:
@@ -166,7 +268,8 @@ def _store_status(store: Path, src: Path) -> list[str]:
 
 
 def fault_cases():
-    """(name, function(tmp, src) -> (command, env, expected rc, path the message must name, check(result) -> note))."""
+    """(name, function(tmp, src, shared) -> (command, env, expected rc, path the message must name,
+    check(result) -> note)); ``shared``: a :class:`Shared`."""
     cases = []
 
     def render_base(tmp, src):
@@ -174,13 +277,12 @@ def fault_cases():
         return ["render", str(tmp / "s.toml"), "--quality", "draft", "--no-previews"]
 
     def cache_fault(kind, budget=None):
-        def make(tmp, src):
+        def make(tmp, src, shared):
             cache = tmp / "cache"
             cache.mkdir()
             b = budget
             if budget == "after_exr":  # room for the EXR, not for gt.json
-                probe = warm(tmp, src, tmp / "probe")
-                b = (next((probe / "gt").glob("*/*")) / "gt.exr").stat().st_size + 50
+                b = shared.exr_size() + 50
             cmd = _faulty(kind, cache, b) + render_base(tmp, src) + ["--cache", str(cache)]
             return cmd, None, 1, cache, lambda r: "" if _entries(cache) == 0 and _stale(cache) == 0 else \
                 f"cache left {_entries(cache)} entries, {_stale(cache)} temporaries"
@@ -189,12 +291,12 @@ def fault_cases():
     cases += [("cache read-only", cache_fault("readonly")), ("cache permission denied", cache_fault("denied")),
               ("cache full during the EXR", cache_fault("full", 0)), ("cache full during gt.json", cache_fault("full", "after_exr"))]
 
-    def cache_is_file(tmp, src):
+    def cache_is_file(tmp, src, shared):
         (tmp / "cache").write_text("x")
         return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache")], None, 1, tmp / "cache", \
             lambda r: ""
 
-    def cache_gt_is_file(tmp, src):
+    def cache_gt_is_file(tmp, src, shared):
         (tmp / "cache").mkdir()
         (tmp / "cache" / "gt").write_text("x")
         return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache")], None, 1, tmp / "cache", \
@@ -202,21 +304,19 @@ def fault_cases():
 
     cases += [("cache root is a file", cache_is_file), ("cache/gt is a file", cache_gt_is_file)]
 
-    def warm(tmp, src, cache=None):
-        cache = cache or tmp / "cache"
-        r = _run([sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(cache)], src)
-        assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
-        return cache
+    def warm(tmp, shared):   # TINY in the case's cache (a copy of the shared one)
+        return shared.cache(tmp / "cache")
 
     def out_fault(kind, budget=None, previews=False, previous=False):
-        def make(tmp, src):
-            cache = warm(tmp, src)
+        def make(tmp, src, shared):
+            cache = warm(tmp, shared)
             out = tmp / "out"
-            out.mkdir()
             old = None
-            if previous:
-                _run([sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(cache), "--out", str(out)], src)
+            if previous:   # TINY rendered into --out before
+                shared.out(out)
                 old = (out / "tiny" / "gt.exr").read_bytes()
+            else:
+                out.mkdir()
             args = render_base(tmp, src) + ["--cache", str(cache), "--out", str(out)]
             if previews:
                 args.remove("--no-previews")
@@ -242,14 +342,14 @@ def fault_cases():
               ("--out full during the previews", out_fault("full", 60000, previews=True)),
               ("--out full over a previous render", out_fault("full", 1000, previous=True))]
 
-    def out_is_file(tmp, src):
-        warm(tmp, src)
+    def out_is_file(tmp, src, shared):
+        warm(tmp, shared)
         (tmp / "out").write_text("x")
         return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache"), "--out", str(tmp / "out")], \
             None, 1, tmp / "out", lambda r: ""
 
-    def out_scene_is_file(tmp, src):
-        warm(tmp, src)
+    def out_scene_is_file(tmp, src, shared):
+        warm(tmp, shared)
         (tmp / "out").mkdir()
         (tmp / "out" / "tiny").write_text("x")
         return [sys.executable, "-m", "pbrbench"] + render_base(tmp, src) + ["--cache", str(tmp / "cache"), "--out", str(tmp / "out")], \
@@ -258,20 +358,10 @@ def fault_cases():
     cases += [("--out is a file", out_is_file), ("--out/<scene> is a file", out_scene_is_file)]
 
     # ---- the results store
-    def with_store(tmp, src):
-        r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
-                  "fake_run(Path(sys.argv[1]))", str(tmp)], src)
-        assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
-        return tmp / "h.sqlite"
-
     def store_read(kind, command):
-        def make(tmp, src):
-            store = with_store(tmp, src)
+        def make(tmp, src, shared):
             sdir = tmp / "sdir"
-            sdir.mkdir()
-            for f in tmp.glob("h.sqlite*"):
-                shutil.move(str(f), sdir / f.name)
-            store = sdir / "h.sqlite"
+            store = shared.store(sdir)
             args = {"history": ["history"], "report": ["report", "--out", str(tmp / "rep")],
                     "compare": ["compare", "latest", "latest"]}[command]
             return _faulty(kind, sdir) + args + ["--store", str(store)], None, 0, None, \
@@ -284,7 +374,7 @@ def fault_cases():
               ("history on a store without write permission", store_read("denied", "history"))]
 
     def store_broken(what):
-        def make(tmp, src):
+        def make(tmp, src, shared):
             p = tmp / "h.sqlite"
             if what == "directory":
                 p.mkdir()
@@ -302,33 +392,33 @@ def fault_cases():
     cases += [("store is a directory", store_broken("directory")), ("store is a text file", store_broken("text")),
               ("store is another SQLite database", store_broken("foreign"))]
 
-    def report_out_readonly(tmp, src):
-        store = with_store(tmp, src)
+    def report_out_readonly(tmp, src, shared):
+        store = shared.store(tmp)
         rep = tmp / "rep"
         rep.mkdir()
         return _faulty("readonly", rep) + ["report", "--store", str(store), "--out", str(rep)], None, 1, rep, lambda r: ""
 
     cases.append(("report with a read-only --out", report_out_readonly))
 
-    # ---- a benchmark run (draft lightness: every render is in the shared cache, read only)
-    def run_args(tmp):
-        return ["run", "--tasks", "lightness", "--quality", "draft", "--cache", SHARED_CACHE, "--no-report"]
-
+    # ---- a benchmark run (draft lightness on RUN_FAMILIES: every render is in the shared cache, read only)
     def run_fault(kind, where, budget=None, report=False):
-        def make(tmp, src):
+        def make(tmp, src, shared):
+            scenes, shared_cache = shared.run()
+            env = {"PBRBENCH_SCENES": str(scenes)}
             sdir, out = tmp / "sdir", tmp / "out"
             sdir.mkdir()
             out.mkdir()
             store = sdir / "h.sqlite"
             if where == "store":
                 _run([sys.executable, "-m", "pbrbench", "history", "--store", str(store)], src)
-            args = run_args(tmp) + ["--store", str(store), "--out", str(out)]
+            args = ["run", "--tasks", "lightness", "--quality", "draft", "--cache", str(shared_cache), "--no-report",
+                    "--store", str(store), "--out", str(out)]
             if report:
                 args.remove("--no-report")
             under = sdir if where == "store" else out
             if kind == "full" and where == "store":
                 # a store with one complete run, then the disk fills during the next
-                r = _run([sys.executable, "-m", "pbrbench"] + args, src)
+                r = _run([sys.executable, "-m", "pbrbench"] + args, src, env)
                 assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
 
             def check(r):
@@ -347,7 +437,7 @@ def fault_cases():
                         except ValueError:
                             return "a truncated scores.json is left"
                 return ""
-            return _faulty(kind, under, budget) + args, None, 1, under, check
+            return _faulty(kind, under, budget) + args, env, 1, under, check
         return make
 
     cases += [("run with a read-only store directory", run_fault("readonly", "store")),
@@ -356,15 +446,15 @@ def fault_cases():
               ("run with --out full during the report", run_fault("full", "out", 4000, report=True))]
 
     # ---- scratch and cache maintenance
-    def scratch_full(tmp, src):
+    def scratch_full(tmp, src, shared):
         (tmp / "s.toml").write_text(TINY_HF)
         scratch = tmp / "scratchtmp"
         scratch.mkdir()
         return _faulty("full", scratch, 0) + ["render", str(tmp / "s.toml"), "--quality", "draft", "--no-previews",
                                                "--cache", str(tmp / "cache")], {"TMPDIR": str(scratch)}, 1, scratch, lambda r: ""
 
-    def clear_readonly(tmp, src):
-        cache = warm(tmp, src)
+    def clear_readonly(tmp, src, shared):
+        cache = warm(tmp, shared)
         return _faulty("readonly", cache) + ["cache", "clear", "--cache", str(cache)], None, 1, cache, \
             lambda r: "" if _entries(cache) == 1 else "the entry vanished"
 
@@ -373,11 +463,12 @@ def fault_cases():
     return cases
 
 
-def classify_fault(name, make, src: Path) -> tuple[str, str]:
+def classify_fault(name, make, src: Path, shared: Shared | None = None) -> tuple[str, str]:
+    shared = shared or shared_for(src)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         try:
-            cmd, env, want_rc, path, check = make(tmp, src)
+            cmd, env, want_rc, path, check = make(tmp, src, shared)
         except AssertionError as e:
             return "setup_failed", str(e)[-200:]
         work = tmp / "cwd"
@@ -428,25 +519,29 @@ ESC_SCENE = TINY.replace('description = "a lit sphere"', 'description = "red \\u
 
 
 def cli_cases():
-    """(name, function(tmp, src) -> (args, env, expected rc, substring the stderr line must hold or None))."""
+    """(name, function(tmp, src, shared) -> (args, env, expected rc, substring the stderr line must
+    hold or None)); ``shared``: a :class:`Shared`.  A function's ``env`` is the environment its
+    case sets (None: none)."""
     c = []
 
     def simple(args, rc=1, want=None, env=None):
-        return lambda tmp, src: (args, env, rc, want)
+        def make(tmp, src, shared):
+            return args, env, rc, want
+        make.env = env
+        return make
 
     def with_store(args, rc=1, want=None):
-        def make(tmp, src):
-            r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
-                      "fake_run(Path(sys.argv[1]))", str(tmp)], src)
-            assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
+        def make(tmp, src, shared):
+            shared.store(tmp)
             return [a.replace("STORE", str(tmp / "h.sqlite")).replace("TMP", str(tmp)) for a in args], None, rc, want
         return make
 
     def with_scene(args, rc=1, want=None, env=None, text=TINY):
-        def make(tmp, src):
+        def make(tmp, src, shared):
             (tmp / "s.toml").write_text(text)
             e = {k: v.replace("TMP", str(tmp)) for k, v in (env or {}).items()}
             return [a.replace("SCENE", str(tmp / "s.toml")).replace("TMP", str(tmp)) for a in args], e, rc, want
+        make.env = env
         return make
 
     c += [
@@ -519,7 +614,51 @@ def cli_cases():
 OLD_LLVM = sorted(p for p in __import__("glob").glob("/usr/lib/*/libLLVM-1[45]*.so*") if os.path.isfile(p) and not os.path.islink(p))
 
 
-def classify_cli(name, make, src: Path) -> tuple[str, str]:
+def isolated(name: str, env: dict | None) -> bool:
+    """Whether a command-line case needs a process of its own: one that sets the environment, or
+    chooses a variant or a libLLVM (chosen once per process, before Mitsuba is imported)."""
+    return bool(env) or any(w in name for w in ("variant", "LLVM", "GPU"))
+
+
+def run_in_process(args: list[str], *, env: dict | None = None, cwd=None) -> subprocess.CompletedProcess:
+    """``pbrbench ARGS`` as :func:`pbrbench.cli.main.main` in this process, with the environment
+    of :func:`child_env` (no PBRBENCH_* settings of this process) in ``cwd``: the exit code and
+    what it printed (an exception that escapes ``main`` is printed as the traceback the
+    interpreter would print, exit code 1)."""
+    from pbrbench.cli.main import main
+
+    saved_env, saved_cwd = dict(os.environ), os.getcwd()
+    out, err = io.StringIO(), io.StringIO()
+    try:
+        for k in [k for k in os.environ if k.startswith("PBRBENCH_")]:
+            del os.environ[k]
+        os.environ.update(PBRBENCH_PROGRESS="0", **(env or {}))
+        os.chdir(cwd or tempfile.gettempdir())
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                rc = main(list(args))
+            except SystemExit as e:
+                rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+            except Exception:  # noqa: BLE001 - what the user would see
+                traceback.print_exc()
+                rc = 1
+    finally:
+        os.chdir(saved_cwd)
+        os.environ.clear()
+        os.environ.update(saved_env)
+    return subprocess.CompletedProcess(["pbrbench", *args], rc, out.getvalue(), err.getvalue())
+
+
+def _this_checkout(src: Path) -> bool:
+    import pbrbench
+
+    return Path(pbrbench.__file__).resolve().parents[1] == Path(src).resolve()
+
+
+def classify_cli(name, make, src: Path, shared: Shared | None = None, *, subprocess_only: bool = False) -> tuple[str, str]:
+    """The outcome of one command-line case: in this process where isolation is not the point
+    (:func:`isolated`) and ``src`` is the pbrbench this process imported, else a subprocess."""
+    shared = shared or shared_for(src)
     with tempfile.TemporaryDirectory() as d:
         tmp = Path(d)
         if OLD_LLVM:  # an LLVM 15 under a name that says 19, and a directory holding only it
@@ -527,13 +666,16 @@ def classify_cli(name, make, src: Path) -> tuple[str, str]:
             (tmp / "llvm").mkdir()
             os.symlink(OLD_LLVM[-1], tmp / "llvm" / "libLLVM-19.so")
         try:
-            args, env, want_rc, want = make(tmp, src)
+            args, env, want_rc, want = make(tmp, src, shared)
         except AssertionError as e:
             return "setup_failed", str(e)[-200:]
         store_before = _store_status(tmp / "h.sqlite", src) if (tmp / "h.sqlite").exists() else None
         work = tmp / "cwd"   # relative defaults (reports/, the store) land inside the case's directory
         work.mkdir()
-        r = _run([sys.executable, "-m", "pbrbench", *args], src, env, timeout=120, cwd=work)
+        if subprocess_only or isolated(name, env) or not _this_checkout(src):
+            r = _run([sys.executable, "-m", "pbrbench", *args], src, env, timeout=120, cwd=work)
+        else:
+            r = run_in_process(args, env=env, cwd=work)
         if r is None:
             return "timeout", ""
         if any(work.iterdir()) and want_rc == 1:

@@ -1,8 +1,9 @@
 """The corpus of malformed scene files (tests/corpus/scenes, written by make_scenes.py): every
 file is refused with one line that names the file, the key and the reason (the ``# expect:``
 lines of the file); the ones only a render can judge are refused by the render (marked
-``render``) and never cached.  A sample goes through the command line as a subprocess: exit 1,
-one line on stderr, no traceback."""
+``render``) and never cached.  A sample goes through the command line (``main`` in this process;
+one of them also as a subprocess, ``python -m pbrbench``): exit 1, one line on stderr, no
+traceback."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 
 from pbrbench.errors import SceneError, UserError
 from pbrbench.scene.load import load_scene_file
-from tests.corpus.measure import expectations, run_cli
+from tests.corpus.measure import expectations, run_cli, run_in_process
 
 SCENES = Path(__file__).resolve().parent / "scenes"
 FILES = sorted(SCENES.glob("*.toml"))
@@ -59,17 +60,19 @@ def test_black_ground_truth_is_refused_and_not_cached(path, tmp_path):
     assert cache.info()["entries"] == 0
 
 
-# one file per class, through the command line (a subprocess each: a few seconds)
+# one file per class, through the command line (in this process; the first also as a subprocess: a
+# few seconds, Mitsuba's import included)
 CLI_SAMPLE = ["nonfinite-sphere-radius-inf", "degenerate-cylinder-equal-ends", "params-params-misspelt",
               "datafile-npy-header-lies", "datafile-npy-absolute", "name-name-dotdot", "render-seed-64bit",
               "expansion-sweep-10000", "structure-not-utf8", "types-radius-bool"]
 
 
-@pytest.mark.slow
-@pytest.mark.parametrize("stem", CLI_SAMPLE)
-def test_cli_refuses_in_one_line_with_exit_1(stem, tmp_path):
+@pytest.mark.parametrize("stem,how", [(s, "main") for s in CLI_SAMPLE]
+                         + [pytest.param(CLI_SAMPLE[0], "subprocess", marks=pytest.mark.slow)])
+def test_cli_refuses_in_one_line_with_exit_1(stem, how, tmp_path):
     path = SCENES / f"{stem}.toml"
-    r = run_cli(["render", str(path), "--quality", "draft", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "o")])
+    args = ["render", str(path), "--quality", "draft", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "o")]
+    r = run_cli(args) if how == "subprocess" else run_in_process(args)
     assert r is not None, "timed out"
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert r.returncode == 1 and len(lines) == 1 and "Traceback" not in r.stderr, (r.returncode, r.stderr)
