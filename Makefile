@@ -18,8 +18,10 @@ setup: $(STAMP)
 bench: $(STAMP)
 	$(VENV)/bin/pbrbench run --quality standard
 
+# -ra: the summary of every test not passed, skips with their reasons (a skip not on
+# tests/allowed_skips.txt fails the run)
 test: $(STAMP)
-	$(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q -ra
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check pbrbench tests
