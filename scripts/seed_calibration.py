@@ -28,6 +28,7 @@ def main(argv=None) -> int:
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--cache", default=None)
     ap.add_argument("--scene", action="append", default=None, metavar="TASK=SCENE")
+    ap.add_argument("--worst", type=int, default=0, metavar="N", help="also list the N scores furthest from 1")
     a = ap.parse_args(argv)
     pairs = [s.split("=", 1) for s in (a.scene or ["photometric_stereo=ps_groove[albedo=0.9]", "sfs=sfs_vase"])]
 
@@ -60,10 +61,13 @@ def main(argv=None) -> int:
                 for s in res["scores"]:
                     if s["metric"] in ("failed", "converged"):
                         continue
-                    per[(tname, job.condition, s["algorithm"], s["metric"], job.scene)].append(
+                    label = job.param("label")
+                    per[(tname, job.condition, s["algorithm"], s["metric"],
+                         job.scene + (f":{label}" if label else "") + ("" if len(jobs) == len({(j.condition, j.param("label")) for j in jobs}) else f" {job.key}"))].append(
                         (s["value"], s["uncertainty"]))
         print(f"seed {seed + 1}/{a.seeds} done", file=sys.stderr, flush=True)
     by_alg = defaultdict(lambda: [[], [], []])      # observed var, predicted var, per-score ratio
+    listed = []
     for (tname, _cond, alg, _m, _sc), vs in per.items():
         if len(vs) < a.seeds:
             continue
@@ -79,12 +83,15 @@ def main(argv=None) -> int:
         b[0].append(obs)
         b[1].append(pred)
         b[2].append(math.sqrt(obs / pred) if pred > 0 else math.inf)
+        listed.append((b[2][-1], (tname, _cond, alg, _m, _sc), [round(float(x), 5) for x in v], [round(float(x), 5) for x in u]))
     print(f"{'task':20s} {'algorithm':34s} {'scores':>6s} {'pooled':>7s} {'median':>7s}")
     allo, allp = [], []
     for (tname, alg), (o, p, r) in sorted(by_alg.items()):
         allo += o
         allp += p
         print(f"{tname:20s} {alg:34s} {len(o):6d} {math.sqrt(np.mean(np.square(r))):7.2f} {np.median(r):7.2f}")
+    for r, key, v, u in sorted(listed, key=lambda x: -abs(math.log(x[0])) if 0 < x[0] < math.inf else -1e9)[:a.worst]:
+        print(f"  ratio {r:.2f} {' / '.join(key)}: values {v} SEs {u}")
     if allo:
         rr = np.array(allo) / np.array(allp)
         print(f"pooled over {len(allo)} scores: observed / predicted SE = {math.sqrt(np.mean(rr)):.2f}")
