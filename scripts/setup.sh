@@ -73,12 +73,14 @@ if [ "${PBRBENCH_SKIP_CHROMIUM:-0}" != 1 ] && ! command -v chromium >/dev/null; 
 fi
 
 # --- Python environment: exactly the versions of requirements.lock (hashes checked), installed
-# by uv; then pbrbench itself, editable, without dependencies.  Refresh the lock with `make lock`
-# (docs/install.md).
+# by uv, compiled to bytecode as they are installed (uv does not compile by default: every
+# interpreter, the test suite's child processes included, would compile NumPy, SciPy, Matplotlib
+# ... anew where PYTHONDONTWRITEBYTECODE is set); then pbrbench itself, editable, without
+# dependencies.  Refresh the lock with `make lock` (docs/install.md).
 bootstrap_uv
 uvp() { "$UV" pip "$@" --quiet --python "$VENV/bin/python"; }
 say "installing the locked dependencies and pbrbench into $VENV"
-uvp install --require-hashes -r "$LOCK"
+uvp install --require-hashes --compile-bytecode -r "$LOCK"
 uvp install --no-deps --no-build-isolation -e .
 check=$("$UV" pip check --python "$VENV/bin/python" 2>&1) \
   || { printf '%s\n' "$check" >&2; say "ERROR: $LOCK does not satisfy pyproject.toml; refresh it with \`make lock\`"; exit 1; }
