@@ -175,8 +175,15 @@ class Shared:
         assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
 
     def store(self, dest: Path) -> Path:
-        """A copy of the store with one fake run: ``dest/h.sqlite``."""
+        """A copy of the store with one fake run: ``dest/h.sqlite`` (the run made in this process
+        where ``src`` is the pbrbench it imported)."""
         def build(d):
+            if _this_checkout(self.src):
+                from tests.fakes import fake_run
+
+                with child_environment(cwd=d):
+                    fake_run(d)
+                return
             r = _run([sys.executable, "-c", "import sys; from pathlib import Path; from tests.fakes import fake_run; "
                       "fake_run(Path(sys.argv[1]))", str(d)], self.src)
             assert r is not None and r.returncode == 0, r.stderr if r else "timeout"
@@ -627,26 +634,33 @@ def run_in_process(args: list[str], *, env: dict | None = None, cwd=None) -> sub
     interpreter would print, exit code 1)."""
     from pbrbench.cli.main import main
 
-    saved_env, saved_cwd = dict(os.environ), os.getcwd()
     out, err = io.StringIO(), io.StringIO()
+    with child_environment(env, cwd), contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            rc = main(list(args))
+        except SystemExit as e:
+            rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
+        except Exception:  # noqa: BLE001 - what the user would see
+            traceback.print_exc()
+            rc = 1
+    return subprocess.CompletedProcess(["pbrbench", *args], rc, out.getvalue(), err.getvalue())
+
+
+@contextlib.contextmanager
+def child_environment(env: dict | None = None, cwd=None):
+    """This process with the PBRBENCH_* settings of :func:`child_env` (none of its own, progress
+    off, then ``env``), in ``cwd``; both restored after."""
+    saved_env, saved_cwd = dict(os.environ), os.getcwd()
     try:
         for k in [k for k in os.environ if k.startswith("PBRBENCH_")]:
             del os.environ[k]
         os.environ.update(PBRBENCH_PROGRESS="0", **(env or {}))
         os.chdir(cwd or tempfile.gettempdir())
-        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-            try:
-                rc = main(list(args))
-            except SystemExit as e:
-                rc = e.code if isinstance(e.code, int) else (0 if e.code is None else 1)
-            except Exception:  # noqa: BLE001 - what the user would see
-                traceback.print_exc()
-                rc = 1
+        yield
     finally:
         os.chdir(saved_cwd)
         os.environ.clear()
         os.environ.update(saved_env)
-    return subprocess.CompletedProcess(["pbrbench", *args], rc, out.getvalue(), err.getvalue())
 
 
 def _this_checkout(src: Path) -> bool:
