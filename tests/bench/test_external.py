@@ -147,8 +147,11 @@ def _in_process(tmp_path, task, seed):
 
 
 def _external(export_dir, fmt="npy", *extra):
+    # one BLAS thread, as the benchmark's own jobs run (pbrbench.bench.executors.blas_threads): a
+    # LAPACK solve on two threads can differ in the last bits, and these scores are compared bit for bit
+    env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
     q = subprocess.run([sys.executable, "-c", EXTERNAL, str(export_dir), fmt, *extra], capture_output=True, text=True,
-                       timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)), cwd=export_dir)
+                       timeout=600, env=env, cwd=export_dir)
     assert q.returncode == 0, q.stderr[-3000:]
 
 
