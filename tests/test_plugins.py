@@ -198,18 +198,21 @@ def test_resume_reloads_the_stored_algorithm_specs(tmp_path, plugin_file, monkey
     assert _scores(again)[("solve", "coverage")] == 1.0
 
 
+@pytest.mark.slow   # two plugins run to their time limit
 def test_a_hanging_crashing_raising_or_malformed_plugin_fails_and_the_run_goes_on(tmp_path, plugin_file):
     names = ("hang", "sleepy", "die", "boom", "nans", "solve")
-    o = _run(tmp_path, [f"photometric_stereo={plugin_file}:{n}" for n in names], limit=2.0)
+    # the limit covers solve's first call in the child started after `die`, which imports
+    # pbrbench.infer (over 2 s on a loaded 2-core machine)
+    o = _run(tmp_path, [f"photometric_stereo={plugin_file}:{n}" for n in names], limit=4.0)
     assert not o.errors
     sc = _scores(o)
     for n in names[:-1]:
         assert sc[(n, "failed")] == 1.0 and (n, "normal_mean_deg") not in sc
     assert sc[("solve", "coverage")] == 1.0 and sc[("woodham1980", "normal_mean_deg")] < 0.01
     secs = {s["algorithm"]: s["seconds"] for s in o.scores if s["metric"] == "failed"}
-    assert 2.0 <= secs["hang"] < 30 and 2.0 <= secs["sleepy"] < 30
+    assert 4.0 <= secs["hang"] < 30 and 4.0 <= secs["sleepy"] < 30
     html = o.report.read_text()
-    assert html.count("ran past its time limit of 2 s") == 2
+    assert html.count("ran past its time limit of 4 s") == 2
     assert "process died (exit status 3)" in html
     assert "MyError: a bug in the plugin" in html and "non-finite" in html
 
