@@ -54,6 +54,8 @@ def main(argv=None) -> int:
                         vals.setdefault((job.key, s["algorithm"]), {})[q.name] = s
         print(f"{q.name} done", file=sys.stderr, flush=True)
     better, n, jobs = 0, 0, set()
+    subsets = {"stable (replicates not bimodal)": [0, 0], "marked (|bias| > SE, stable)": [0, 0],
+               "1x and 4x differ beyond 2 SE (stable)": [0, 0]}
     for (key, alg), d in sorted(vals.items()):
         if len(d) < 2:
             continue
@@ -65,10 +67,20 @@ def main(argv=None) -> int:
         jobs.add(key)
         ok = abs(v1 - b1 - v4) < abs(v1 - v4)
         better += ok
+        stable = not s1.get("unstable")
+        se1 = s1.get("uncertainty") or float("inf")
+        marked = stable and abs(b1) > se1
+        differ = stable and abs(v1 - v4) > 2 * se1
+        for name, inside in zip(subsets, (stable, marked, differ), strict=True):
+            if inside:
+                subsets[name][0] += ok
+                subsets[name][1] += 1
         print(f"{'closer' if ok else 'farther'}  {alg:30s} 1x {v1:9.4g}  bias {b1:+9.3g}  corrected {v1 - b1:9.4g}  "
               f"{a.factor:g}x {v4:9.4g}   {key[:70]}")
     print(f"bias-corrected 1x closer to {a.factor:g}x in {better} of {n} cells ({100 * better / max(n, 1):.0f} %), "
           f"{len(jobs)} jobs")
+    for name, (k, m) in subsets.items():
+        print(f"  {name}: {k} of {m} ({100 * k / max(m, 1):.0f} %)")
     return 0
 
 

@@ -57,7 +57,8 @@ def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.
     """One headline cell: value, standard error, dof, scenes, bias, and the flags the report shows."""
     sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0, dof=dof or None) \
         if effect and not unstable else None
-    limited = finite(bias) and finite(se) and abs(bias) > se and abs(bias) > ROUNDING * abs(value)
+    # a bimodal cell's jackknife bias averages a flip: it is not shown as a correction
+    limited = not unstable and finite(bias) and finite(se) and abs(bias) > se and abs(bias) > ROUNDING * abs(value)
     return {"value": value, "se": se, "dof": dof, "n": n, "effect": effect, "significant": sig,
             "insignificant": sig is False, "bias": bias, "noise_limited": bool(limited),
             "corrected": value - bias if finite(bias) else float("nan"), "unstable": bool(unstable)}
