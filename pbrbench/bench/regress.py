@@ -100,6 +100,12 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
             hashes[s["scene"]] = s["scene_hash"][:16]
         if s.get("algorithm_version"):
             versions[f"{s['task']}/{s['algorithm']}"] = s["algorithm_version"]
+    # bimodality is a property of a pipeline on a job's inputs, not of one metric: every metric of an
+    # algorithm on a (scene, condition) where one of them is unstable is unstable
+    flipped = {tuple(k.split("|")[:4]) for k, e in entries.items() if e.get("unstable")}
+    for k, e in entries.items():
+        if tuple(k.split("|")[:4]) in flipped:
+            e["unstable"] = True
     return {"format": FORMAT, "quality": quality, "seeds": list(seeds), "scene_hashes": hashes,
             "algorithm_versions": versions,
             "method": (f"value = mean over {len(runs)} runs with independent render seeds; sd = one run's standard "

@@ -79,4 +79,10 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
         s["replicates"] = list(r) if r is not None else None
         s["rep_noise"] = reps.get("rep_noise", {}).get(k)
         s.update(estimate(s["value"], s["replicates"], s["rep_noise"]))
+    # a flipped discrete choice is the pipeline's, not one metric's: every metric of that
+    # algorithm's output on the job is unstable when one of them is
+    flipped = {(s["scene"], s["algorithm"]) for s in scores if s.get("unstable")}
+    for s in scores:
+        if (s["scene"], s["algorithm"]) in flipped:
+            s["unstable"] = True
     return scores

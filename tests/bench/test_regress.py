@@ -159,3 +159,11 @@ def test_a_score_that_jumps_between_render_seeds_is_unstable_in_the_baseline():
         runs = [[measured(rng, 5.0, 0.2, **s(0))] for _ in range(4)]
         flagged += bool(regress.build_baselines(runs, quality="draft", seeds=[0, 1, 2, 3])["entries"]["t|a|local|m|rmse"].get("unstable"))
     assert flagged <= 3
+
+
+def test_instability_is_the_pipelines_every_metric_of_its_job_inherits_it():
+    runs = [[s(v, uncertainty=0.01, dof=3), s(1.0, metric="other", uncertainty=0.01, dof=3),
+             s(1.0, metric="else", alg="n", uncertainty=0.01, dof=3)] for v in (0.32, 0.74, 0.31, 0.73)]
+    e = regress.build_baselines(runs, quality="draft", seeds=list(range(4)))["entries"]
+    assert e["t|a|local|m|rmse"]["unstable"] and e["t|a|local|m|other"]["unstable"]
+    assert not e["t|a|local|n|else"].get("unstable")

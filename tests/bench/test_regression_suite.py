@@ -43,3 +43,20 @@ def test_draft_scores_match_baselines(tmp_path, cache_dir):
                      f"the family-wise limit, against {path}:\n" + "\n".join(str(c) for c in comp.strong[:30] + comp.regressions[:30]))
     assert len(flagged) <= 0.01 * comp.n_checked, (f"{len(flagged)} of {comp.n_checked} scores flagged by a re-seeded "
                                                    "run (false alarms above 1 %):\n" + "\n".join(str(c) for c in flagged[:40]))
+    # the same run with every noisy score made worse by 5 standard deviations of the comparison
+    # (the baseline's sd pooled with the run's own jackknife SE, as the check pools them): at least
+    # 90 % of them are flagged, and the check fails
+    from pbrbench.uncertainty import dof_of, pooled_sd
+
+    planted, keys = [], set()
+    for s in o.scores:
+        e = baselines["entries"].get(regress.score_key(s))
+        if e is None or not e.get("sd") or e["sd"] <= regress.rounding(s["value"]) or e.get("unstable") or s.get("unstable"):
+            planted.append(s)
+            continue
+        sd, _ = pooled_sd((e["sd"], e["dof"]), (s["uncertainty"], dof_of(s)))
+        keys.add(regress.score_key(s))
+        planted.append(dict(s, value=s["value"] + (5 if s["better"] == "lower" else -5) * sd))
+    cp = regress.compare(planted, baselines)
+    hit = sum(1 for c in cp.regressions if regress.score_key(c.__dict__) in keys)
+    assert len(keys) > 0.5 * comp.n_checked and hit >= 0.9 * len(keys) and not cp.ok, (hit, len(keys))

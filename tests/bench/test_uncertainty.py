@@ -247,3 +247,13 @@ def test_a_replicate_that_changes_nothing_the_job_read_is_not_scored_again():
         (v,) = reps["replicates"].values()
         assert calls == ([None, 0, 1, 2, 3] if rescored else [None])
         assert (len(set(v)) > 1) == rescored and (rescored or v == [res.scores[0].value] * G)
+
+
+def test_a_flip_marks_every_metric_of_the_algorithm_on_the_job():
+    scores = [{"scene": "s", "algorithm": "a", "metric": "x", "value": 5.78},
+              {"scene": "s", "algorithm": "a", "metric": "y", "value": 1.0},
+              {"scene": "s", "algorithm": "b", "metric": "x", "value": 1.0}]
+    reps = {"replicates": {("s", "a", "x"): [3.10, 3.12, 3.11, 5.78], ("s", "a", "y"): [1.0, 1.01, 1.02, 1.0],
+                           ("s", "b", "x"): [1.0, 1.01, 1.02, 1.0]}}
+    out = {(d["algorithm"], d["metric"]): d["unstable"] for d in attach(scores, reps)}
+    assert out == {("a", "x"): True, ("a", "y"): True, ("b", "x"): False}
