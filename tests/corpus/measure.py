@@ -142,6 +142,13 @@ def _run(cmd, src, env=None, timeout=300, cwd=None):
         return None
 
 
+def _this_checkout(src: Path) -> bool:
+    """Whether ``src`` is the source tree of the pbrbench this process imported."""
+    import pbrbench
+
+    return Path(pbrbench.__file__).resolve().parents[1] == Path(src).resolve()
+
+
 class Shared:
     """What several cases start from, built once (on its first use) below ``root`` with the
     command line of ``src``, and copied into a case's own directory: a results store holding one
@@ -509,18 +516,6 @@ def measure_faults(src: Path = ROOT, verbose: bool = False) -> Counter:
     return c
 
 
-if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "faults":
-    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
-    c = measure_faults(src, verbose=True)
-    print(f"{sum(c.values())} disk faults: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
-
-
-if __name__ == "__main__" and (len(sys.argv) < 2 or sys.argv[1] == "scenes"):
-    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
-    c = measure_scenes(src, verbose=True)
-    print(f"{sum(c.values())} scene files: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
-
-
 # ----------------------------------------------------------------------------- command-line misuse
 ESC_SCENE = TINY.replace('description = "a lit sphere"', 'description = "red \\u001b[31mALERT\\u001b[0m \\u001b]0;title\\u0007 \\u001b[2J"')
 
@@ -663,12 +658,6 @@ def child_environment(env: dict | None = None, cwd=None):
         os.environ.update(saved_env)
 
 
-def _this_checkout(src: Path) -> bool:
-    import pbrbench
-
-    return Path(pbrbench.__file__).resolve().parents[1] == Path(src).resolve()
-
-
 def classify_cli(name, make, src: Path, shared: Shared | None = None, *, subprocess_only: bool = False) -> tuple[str, str]:
     """The outcome of one command-line case: in this process where isolation is not the point
     (:func:`isolated`) and ``src`` is the pbrbench this process imported, else a subprocess."""
@@ -727,3 +716,15 @@ if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "cli":
     src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
     c = measure_cli(src, verbose=True)
     print(f"{sum(c.values())} command-line misuses: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+
+
+if __name__ == "__main__" and len(sys.argv) > 1 and sys.argv[1] == "faults":
+    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
+    c = measure_faults(src, verbose=True)
+    print(f"{sum(c.values())} disk faults: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+
+
+if __name__ == "__main__" and (len(sys.argv) < 2 or sys.argv[1] == "scenes"):
+    src = Path(sys.argv[2]) if len(sys.argv) > 2 else ROOT
+    c = measure_scenes(src, verbose=True)
+    print(f"{sum(c.values())} scene files: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
