@@ -32,7 +32,11 @@ brightest 1 %; response error in stops (per-channel scale removed); ``invalid`` 
 NaN/inf/<= 0 outputs.  Times: wall-clock seconds, best of ``repeats``; pbrbench's merge and
 OpenCV's ``MergeDebevec`` are timed alternately in the same process on the same bracket, with
 OpenCV single-threaded (``cv2.setNumThreads(1)``; run with ``OPENBLAS_NUM_THREADS=1`` for
-single-threaded BLAS) and reported as ``merge_time_ratio_vs_opencv``.  Ratio rows
+single-threaded BLAS) and reported as ``merge_time_ratio_vs_opencv``; the calibrations likewise,
+round-robin (:func:`calibration_times`), as ``cal_ratio_vs_opencv-deb`` (ours-debevec1997 /
+``CalibrateDebevec``), ``cal_ratio_vs_opencv-rob`` (ours-robertson2003 and ours-mitsunaga1999 /
+``CalibrateRobertson``) and ``cal_ratio_vs_robertson`` (ours-mitsunaga1999 /
+ours-robertson2003, also without OpenCV), on every case.  Ratio rows
 ``log2_rmse_ratio_vs_<x>`` / ``dark1_ratio_vs_<x>`` are pbrbench's default pipeline
 (``ours-debevec1997``) divided by method ``x`` (lower is better; the targets are <= 1.1 vs the
 oracle and <= 1 vs ``opencv-robertson``).
@@ -237,6 +241,39 @@ def merge_time_ratio(images, times, repeats: int) -> tuple[float, float, float]:
     return ours, theirs, ours / theirs
 
 
+def calibration_times(images, times, repeats: int, opencv: bool = True) -> dict[str, float]:
+    """Best-of-``repeats`` wall times of each of pbrbench's calibrations (``ours-<name>``) and,
+    with ``opencv``, OpenCV's ``CalibrateDebevec`` and ``CalibrateRobertson`` (``opencv-debevec``,
+    ``opencv-robertson``, single-threaded), timed round-robin in this process on the same
+    bracket, so that their ratios compare them under the same load."""
+    fns = {f"ours-{m}": (lambda fn=fn: fn(images, times)) for m, fn in hdr.CALIBRATION_METHODS.items()}
+    if opencv:
+        import cv2
+
+        cv2.setNumThreads(1)
+        imgs = [np.ascontiguousarray(im) for im in images]
+        tt = np.asarray(times, np.float32)
+        fns["opencv-debevec"] = lambda: cv2.createCalibrateDebevec().process(imgs, tt)
+        fns["opencv-robertson"] = lambda: cv2.createCalibrateRobertson().process(imgs, tt)
+    best = dict.fromkeys(fns, np.inf)
+    for _ in range(repeats):
+        for name, fn in fns.items():
+            t0 = time.perf_counter()
+            fn()
+            best[name] = min(best[name], time.perf_counter() - t0)
+    return best
+
+
+# calibration time ratios: (ours, reference, metric); the metric names fit the 24 characters
+# that ``pbrbench perf`` prints
+CALIBRATION_RATIOS = (
+    ("ours-debevec1997", "opencv-debevec", "cal_ratio_vs_opencv-deb"),
+    ("ours-robertson2003", "opencv-robertson", "cal_ratio_vs_opencv-rob"),
+    ("ours-mitsunaga1999", "opencv-robertson", "cal_ratio_vs_opencv-rob"),
+    ("ours-mitsunaga1999", "ours-robertson2003", "cal_ratio_vs_robertson"),
+)
+
+
 def _row(case, method, metric, value, unit, better=None):
     r = {"benchmark": BENCH, "case": case, "method": method, "metric": metric, "value": float(value), "unit": unit}
     if better:
@@ -296,9 +333,14 @@ def run(quick: bool = False) -> list[dict]:
                 for m in ("log2_rmse", "dark1"):
                     rows.append(_row(case, "ours-debevec1997", f"{m}_ratio_vs_{ref}",
                                      ours[m] / max(sc[m], 1e-12), "x", better="lower"))
-        if peers["opencv"] and case in ("read+shot", "no_noise"):
-            t_ours, t_cv, ratio = merge_time_ratio(br.images, br.exposure_times, max(repeats, 5))
+        # time ratios on every case (the costs depend on the noise and on how fast each converges)
+        if peers["opencv"]:
+            t_ours, t_cv, ratio = merge_time_ratio(br.images, br.exposure_times, max(repeats, 10))
             rows.append(_row(case, "ours-debevec1997", "merge_time_ratio_vs_opencv", ratio, "x", better="lower"))
+        tc = calibration_times(br.images, br.exposure_times, repeats, opencv=peers["opencv"])
+        for ours, ref, metric in CALIBRATION_RATIOS:
+            if ours in tc and ref in tc:
+                rows.append(_row(case, ours, metric, tc[ours] / tc[ref], "x", better="lower"))
     return rows
 
 

@@ -5,7 +5,8 @@ Calibration (:mod:`~pbrbench.infer.hdr.debevec1997`, :mod:`~pbrbench.infer.hdr.r
 :func:`level_weights`, :func:`sample_pixels` and :func:`finalise`; merging
 (:mod:`pbrbench.infer.hdr.merge`) uses :func:`as_stack`, :func:`check_times`,
 :func:`check_response`, :func:`response_table`, :func:`check_noise_model`,
-:func:`estimate_noise`, :func:`fill_unexposed` and :func:`merge_output`.
+:func:`estimate_noise`, :func:`fill_unexposed` (or :func:`unexposed_bounds`) and
+:func:`merge_output`.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ __all__ = [
     "merge_output",
     "response_table",
     "sample_pixels",
+    "unexposed_bounds",
 ]
 
 CALIBRATION_WEIGHTINGS = ("hat", "uniform", "gaussian")
@@ -315,25 +317,31 @@ def fill_unexposed(lnE: np.ndarray, empty: np.ndarray, Zt: np.ndarray, logx: np.
     ``top``: the top level.  A pixel can only be empty if each of its levels is 0 or ``top``:
     clipped high, it gets the lower bound ``ln f^{-1}(top) - ln t`` of its shortest clipped
     exposure; black in every exposure, the upper bound ``ln f^{-1}(1) - ln t`` of its longest
-    black one; both, their mean.  ``lnE`` is changed in place.  Returns the (C, H, W) mask of pixels saturated
-    in every exposure.
+    black one; both, their mean (:func:`unexposed_bounds`).  ``lnE`` is changed in place.
+    Returns the (C, H, W) mask of pixels saturated in every exposure.
     """
     K, C, H, W = Zt.shape
     saturated = np.zeros((C, H, W), bool)
     if empty.any():
-        ci, yi, xi = np.nonzero(empty)
-        zz = Zt[:, ci, yi, xi].astype(np.int64)  # (K, n)
-        hi = zz >= top
-        lo = zz <= 0
-        # lower bound from the shortest clipped-high exposure, upper from the longest black one
-        k_hi = np.where(hi.any(axis=0), np.argmax(hi, axis=0), -1)
-        k_lo = np.where(lo.any(axis=0), K - 1 - np.argmax(lo[::-1], axis=0), -1)
-        lb = logx[top, ci] - lnt[np.maximum(k_hi, 0)]
-        ub = logx[1, ci] - lnt[np.maximum(k_lo, 0)]
-        val = np.where(k_hi >= 0, np.where(k_lo >= 0, 0.5 * (lb + ub), lb), ub)
-        lnE[ci, yi, xi] = val
-        saturated[ci, yi, xi] = hi.all(axis=0)
+        ci, yi, xi = np.unravel_index(np.flatnonzero(empty), empty.shape)  # np.nonzero, faster
+        lnE[ci, yi, xi], saturated[ci, yi, xi] = unexposed_bounds(Zt, ci, yi, xi, logx, lnt, top)
     return saturated
+
+
+def unexposed_bounds(Zt: np.ndarray, ci, yi, xi, logx: np.ndarray, lnt: np.ndarray, top: int):
+    """The bounds of :func:`fill_unexposed` for the pixels ``(ci, yi, xi)`` of ``Zt`` (K, C,
+    H, W) that no exposure measures: ``(ln E, saturated in every exposure)``, one each."""
+    K = Zt.shape[0]
+    zz = Zt[:, ci, yi, xi].astype(np.int64)  # (K, n)
+    hi = zz >= top
+    lo = zz <= 0
+    # lower bound from the shortest clipped-high exposure, upper from the longest black one
+    k_hi = np.where(hi.any(axis=0), np.argmax(hi, axis=0), -1)
+    k_lo = np.where(lo.any(axis=0), K - 1 - np.argmax(lo[::-1], axis=0), -1)
+    lb = logx[top, ci] - lnt[np.maximum(k_hi, 0)]
+    ub = logx[1, ci] - lnt[np.maximum(k_lo, 0)]
+    val = np.where(k_hi >= 0, np.where(k_lo >= 0, 0.5 * (lb + ub), lb), ub)
+    return val, hi.all(axis=0)
 
 
 def merge_output(lnE: np.ndarray, saturated: np.ndarray, return_mask: bool):

@@ -26,14 +26,21 @@ VERSION = "3"  # order by the paper's rule, monotone fits, dark end constrained,
 _GRID = 65  # points on which the monotonicity of the fitted polynomial is enforced
 
 
-def _moments(ma, mb, kk, n_pairs: int, nmax: int):
+def _moments(ma, mb, kk, n_pairs: int, nmax: int, powers=None):
     """Per pair ``k``: the monomial moment matrices ``sum Ma^i Ma^j``, ``sum Ma^i Mb^j`` and
-    ``sum Mb^i Mb^j`` (i, j <= nmax) of its rows, shape (n_pairs, 3, nmax + 1, nmax + 1)."""
+    ``sum Mb^i Mb^j`` (i, j <= nmax) of its rows, shape (n_pairs, 3, nmax + 1, nmax + 1).
+
+    ``powers``: optional ``(Va, Vb)``, the rows' monomials ``M^n`` (n <= nmax) when the caller
+    has them already.  Rows sorted by ``kk`` are summed as contiguous blocks."""
     out = np.zeros((n_pairs, 3, nmax + 1, nmax + 1))
-    Va = ma[:, None] ** np.arange(nmax + 1)
-    Vb = mb[:, None] ** np.arange(nmax + 1)
+    if powers is None:
+        Va = ma[:, None] ** np.arange(nmax + 1)
+        Vb = mb[:, None] ** np.arange(nmax + 1)
+    else:
+        Va, Vb = powers
+    bounds = np.searchsorted(kk, np.arange(n_pairs + 1)) if np.all(np.diff(kk) >= 0) else None
     for k in range(n_pairs):
-        s = kk == k
+        s = slice(bounds[k], bounds[k + 1]) if bounds is not None else (kk == k)
         a, b = Va[s], Vb[s]
         out[k] = a.T @ a, a.T @ b, b.T @ b
     return out
@@ -80,6 +87,32 @@ def _mn_fit(mom, R, degree, black: bool, m_first: float, monotone: bool):
     return T @ (u / sc) + e
 
 
+def _mn_fit_free(mom, R, degree, black: bool):
+    """The unconstrained :func:`_mn_fit` of every channel at once, ``mom`` (C, pairs, 3, n, n)
+    the channels' moments; (C, degree + 1) coefficients.  Sums over pairs vectorised and a
+    batched solve (singular values below 1e-14 of the largest dropped, as ``lstsq``): rounded
+    differently, for screening only."""
+    N = degree
+    M = mom[..., : N + 1, : N + 1]
+    M1 = M[:, :, 1]
+    Q = M[:, :, 0].sum(axis=1) - np.einsum("k,ckij->cij", R, M1 + M1.transpose(0, 1, 3, 2)) \
+        + np.einsum("k,ckij->cij", R * R, M[:, :, 2])
+    n = np.arange(1 if black else 0, N)  # free coefficients; c_N = 1 - sum(free)
+    c = np.zeros((Q.shape[0], N + 1))
+    c[:, N] = 1.0
+    if n.size:
+        qnN, qNN = Q[:, n, N], Q[:, N, N][:, None]
+        G = Q[:, n[:, None], n[None, :]] - qnN[:, :, None] - Q[:, N, n][:, None, :] + qNN[:, :, None]
+        sc = np.sqrt(np.maximum(np.diagonal(G, axis1=1, axis2=2), 1e-300))
+        U, sv, Vt = np.linalg.svd(G / (sc[:, :, None] * sc[:, None, :]))
+        keep = sv > 1e-14 * sv[:, :1]
+        w = np.where(keep, np.einsum("cji,cj->ci", U, (qNN - qnN) / sc) / np.where(keep, sv, 1.0), 0.0)
+        u = np.einsum("cji,cj->ci", Vt, w) / sc
+        c[:, n] = u
+        c[:, N] -= u.sum(axis=1)
+    return c
+
+
 def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None, max_degree: int = 10,
                             max_iter: int = 20, tol: float = 1e-6, estimate_ratios: bool = True,
                             samples: int = 20000, seed: int = 0, bit_depth: int | None = None) -> CameraResponse:
@@ -106,10 +139,13 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     Order: the paper's rule, the order ``N`` in ``1 .. max_degree`` with the smallest
     ``\varepsilon`` among the monotonic solutions.  Here every fit is constrained to be
     monotonic (a quadratic programme when the least-squares solution is not), so every order
-    competes.  The dark end, where the absolute error ``\varepsilon`` has no leverage, is
-    constrained in one of two ways, and the one whose pair equations hold better in relative
-    terms, ``\sum [(f^{-1}(M_{ik}) - R_k f^{-1}(M_{i,k+1})) / (f^{-1}(M_{ik}) + R_k
-    f^{-1}(M_{i,k+1}))]^2``, is kept: black at zero (``c_0 = 0``, increasing on ``[0, 1]``:
+    competes (an order whose unconstrained least squares already has a larger ``\varepsilon``
+    than a monotonic solution of another order cannot win; it is recognised by a cheap screen
+    and not solved further, which leaves the result that of solving every order).  The dark
+    end, where the absolute error ``\varepsilon`` has no leverage, is constrained in one of two
+    ways, and the one whose pair equations hold better in relative terms, ``\sum
+    [(f^{-1}(M_{ik}) - R_k f^{-1}(M_{i,k+1})) / (f^{-1}(M_{ik}) + R_k f^{-1}(M_{i,k+1}))]^2``,
+    is kept: black at zero (``c_0 = 0``, increasing on ``[0, 1]``:
     power-law-like responses), or ``c_0`` free with ``f^{-1}`` positive and increasing from the
     first level on (responses with an infinite slope at black, such as film curves, which a
     polynomial through 0 cannot follow).
@@ -157,43 +193,107 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     flat = Z.reshape(K, H * W, C)
     lnR_nom = np.log(t[:-1] / t[1:])
     span = lnR_nom.sum()
-    # per channel: stacked pair rows (Ma, Mb, pair index k)
-    rows = []
+    # per channel: stacked pair rows (Ma, Mb, pair index k), rows of pair k contiguous; a row's
+    # levels as indices into the channel's distinct levels, so that a polynomial is evaluated
+    # once per level (not per row) and looked up
+    rows = []  # per channel (distinct levels / top, ia, ib, kk): the row order of the sums
+    sums = []  # per channel (distinct levels / top, [ia | ib], [kk | kk + K - 1]), interleaved
+    distinct = []  # per channel (distinct levels / top, ia, ib, kk, multiplicity), distinct rows
     for c in range(C):
-        z = flat[:, idx_c[c], c].astype(np.float64)
-        ma, mb, kk = [], [], []
+        z = flat[:, idx_c[c], c]
+        ia, ib, kk = [], [], []
         for k in range(K - 1):
             za, zb = z[k], z[k + 1]
             ok = (za > 0) & (za < top) & (zb > 0) & (zb < top)
-            ma.append(za[ok] / top)
-            mb.append(zb[ok] / top)
+            ia.append(za[ok])
+            ib.append(zb[ok])
             kk.append(np.full(int(ok.sum()), k))
-        rows.append((np.concatenate(ma), np.concatenate(mb), np.concatenate(kk)))
-        if rows[-1][0].size < 4:
+        ia, ib, kk = np.concatenate(ia), np.concatenate(ib), np.concatenate(kk)
+        if ia.size < 4:
             raise ValueError(f"images: channel {c} has too few pixels unclipped in two adjacent exposures; "
                              "use exposures closer together or that cover the scene")
+        # the distinct levels (np.unique by counting) and each row's index into them
+        present = np.zeros(levels, bool)
+        present[ia] = present[ib] = True
+        lv = np.flatnonzero(present)
+        pos = np.cumsum(present) - 1
+        ia, ib = np.take(pos, ia), np.take(pos, ib)
+        ml = lv.astype(np.float64) / top
+        rows.append((ml, ia, ib, kk))
+        # the ratio update's per-pair sums run over the rows of a pair in their order, one pair
+        # after the other; interleaving the pairs keeps each pair's order (the same sums) and
+        # lets the additions of different pairs overlap
+        cnt = np.bincount(kk, minlength=K - 1)
+        rank = np.arange(kk.size) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        order = np.argsort(rank.astype(np.uint16) if kk.size < 1 << 16 else rank, kind="stable")
+        sums.append((ml, np.concatenate([ia[order], ib[order]]), np.concatenate([kk[order], kk[order] + K - 1])))
+        # the distinct rows and their multiplicities (for the screen of :func:`run`)
+        nl = lv.size
+        code = (kk * nl + ia) * nl + ib
+        if (K - 1) * nl * nl <= 1 << 22:
+            mult = np.bincount(code, minlength=(K - 1) * nl * nl)
+            code = np.flatnonzero(mult)
+            mult = mult[code]
+        else:
+            code, mult = np.unique(code, return_counts=True)
+        distinct.append((ml, code // nl % nl, code % nl, code // (nl * nl), mult.astype(np.float64)))
 
     def residuals(coefs, lnR):
-        for (ma, mb, kk), cf in zip(rows, coefs, strict=True):
-            pa = np.polynomial.polynomial.polyval(ma, cf)
-            pb = np.polynomial.polynomial.polyval(mb, cf)
-            yield pa, np.exp(lnR[kk]) * pb, kk
+        """Per channel ``p(Ma)``, ``R_k p(Mb)`` and ``k`` of every row."""
+        for (ml, ia, ib, kk), cf in zip(rows, coefs, strict=True):
+            pl = np.polynomial.polynomial.polyval(ml, cf)
+            yield np.take(pl, ia), np.take(np.exp(lnR), kk) * np.take(pl, ib), kk
 
     nmax = degree if degree is not None else max_degree
-    moms = [_moments(ma, mb, kk, K - 1, nmax) for ma, mb, kk in rows]
+    moms = []
+    for ml, ia, ib, kk in rows:
+        vl = ml[:, None] ** np.arange(nmax + 1)
+        moms.append(_moments(None, None, kk, K - 1, nmax, powers=(np.take(vl, ia, axis=0), np.take(vl, ib, axis=0))))
 
-    def run(deg, black):
-        lnR = lnR_nom.copy()
-        coefs = [None] * C
+    mom_all = np.stack(moms)
+
+    def pair_error_distinct(coefs, lnR):
+        """The pair error over the distinct rows (rounded differently: for screening only)."""
+        eps = 0.0
+        for (ml, ia, ib, kk, mult), cf in zip(distinct, coefs, strict=True):
+            pl = np.polynomial.polynomial.polyval(ml, cf)
+            eps += float(mult @ (np.take(pl, ia) - np.take(np.exp(lnR), kk) * np.take(pl, ib)) ** 2)
+        return eps
+
+    def ratio_sums(coefs):
+        """``sum_i p(Ma) p(Mb)`` and ``sum_i p(Mb)^2`` per pair over the rows, in row order."""
+        num = np.zeros(K - 1)
+        den = np.zeros(K - 1)
+        for (ml, iab, kk2), cf in zip(sums, coefs, strict=True):
+            p = np.take(np.polynomial.polynomial.polyval(ml, cf), iab)
+            nr = p.size // 2
+            w = np.empty_like(p)
+            np.multiply(p[:nr], p[nr:], out=w[:nr])  # p(Ma) p(Mb)
+            np.multiply(p[nr:], p[nr:], out=w[nr:])  # p(Mb)^2
+            both = np.bincount(kk2, weights=w, minlength=2 * (K - 1))
+            num += both[:K - 1]
+            den += both[K - 1:]
+        return num, den
+
+    def ratio_sums_moments(coefs):
+        """:func:`ratio_sums` from the moments, ``c^T (sum Va Vb^T) c`` and ``c^T (sum Vb Vb^T) c``
+        (cheap, but rounded differently: for screening only)."""
+        M = mom_all[:, :, 1:, : coefs.shape[1], : coefs.shape[1]]
+        both = np.einsum("ci,ckmij,cj->mk", coefs, M, coefs)
+        return both[0], both[1]
+
+    def alternate(deg, black, sums_of, start=None):
+        """The ratios after alternating the least-squares fit and the ratio update (from the
+        stated ratios, or from ``start``)."""
+        lnR = (lnR_nom if start is None else start).copy()
         for _ in range(max_iter if estimate_ratios and K >= 3 else 0):
             # plain (absolute-error) least squares, as in the paper; the ratios converge on the
-            # unconstrained fits, the final fit below is constrained to be monotonic
-            coefs = [_mn_fit(m, np.exp(lnR), deg, black, m_first, False) for m in moms]
-            num = np.zeros(K - 1)
-            den = np.zeros(K - 1)
-            for pa, pb, kk in residuals(coefs, np.zeros(K - 1)):
-                num += np.bincount(kk, weights=pa * pb, minlength=K - 1)
-                den += np.bincount(kk, weights=pb * pb, minlength=K - 1)
+            # unconstrained fits, the final fit is constrained to be monotonic
+            if sums_of is ratio_sums:
+                coefs = [_mn_fit(m, np.exp(lnR), deg, black, m_first, False) for m in moms]
+            else:
+                coefs = _mn_fit_free(mom_all, np.exp(lnR), deg, black)
+            num, den = sums_of(coefs)
             good = (num > 0) & (den > 0)
             new = np.where(good, np.log(np.where(good, num, 1.0) / np.where(good, den, 1.0)), lnR)
             new += (span - new.sum()) / (K - 1)
@@ -201,20 +301,50 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
             lnR = new
             if change < tol:
                 break
+        return lnR
+
+    def run(deg, black, bound=None, start=None):
+        """Alternate fits and ratio updates, then the monotone fit; ``(coefs, lnR, eps, rel)``.
+
+        With ``bound``, first a screen: the same alternation with the sums from the moments
+        and the distinct rows (from the ratios ``start``: the same fixed point), and None when
+        the unconstrained fit at its ratios has a pair error above ``bound`` by more than the
+        different rounding and stopping point can explain (the monotone fit, a constrained
+        version of the same least squares, cannot have less)."""
+        if bound is not None:
+            lnR = alternate(deg, black, ratio_sums_moments, start)
+            free = _mn_fit_free(mom_all, np.exp(lnR), deg, black)
+            if pair_error_distinct(free, lnR) > bound * (1 + 1e-4):
+                return None
+        lnR = alternate(deg, black, ratio_sums)
         coefs = [_mn_fit(m, np.exp(lnR), deg, black, m_first, True) for m in moms]
-        eps = sum(float(np.sum((pa - rpb) ** 2)) for pa, rpb, _ in residuals(coefs, lnR))
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rel = sum(float(np.nansum(((pa - rpb) / (np.abs(pa) + np.abs(rpb))) ** 2))
-                      for pa, rpb, _ in residuals(coefs, lnR))
+        eps = rel = 0.0
+        for pa, rpb, _ in residuals(coefs, lnR):
+            eps += float(np.sum((pa - rpb) ** 2))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                rel += float(np.nansum(((pa - rpb) / (np.abs(pa) + np.abs(rpb))) ** 2))
         return coefs, lnR, eps, rel
 
+    # per dark-end mode the order with the smallest pair error (the lowest among equals), then
+    # the mode with the smallest relative error.  The orders are run from the highest down, and
+    # an order whose screen (:func:`run`) shows it cannot beat a monotone fit already run is
+    # skipped; the ascending scan below over the orders run then picks what a scan over all
+    # would (a skipped order has a finite error above the smallest)
+    orders = [degree] if degree is not None else list(range(1, max_degree + 1))
     best = None
     for black in (True, False):
+        results = {}
+        least = None
+        for deg in reversed(orders):
+            out = run(deg, black, least, results[min(results)][1] if results else None)
+            if out is not None:
+                results[deg] = out
+                if np.isfinite(out[2]) and (least is None or out[2] < least):
+                    least = out[2]
         mode = None
-        for deg in ([degree] if degree is not None else range(1, max_degree + 1)):
-            out = run(deg, black)
-            if mode is None or out[2] < mode[2]:
-                mode = out
+        for deg in orders:
+            if deg in results and (mode is None or results[deg][2] < mode[2]):
+                mode = results[deg]
         if best is None or mode[3] < best[3]:
             best = mode
     coefs, lnR = best[0], best[1]

@@ -107,3 +107,32 @@ def test_many_exposures_of_a_small_image_keep_their_ratios():
     resp = calibrate_mitsunaga1999(br.images, br.exposure_times)
     ratios = resp.exposure_times[1:] / resp.exposure_times[:-1]
     assert np.max(np.abs(ratios / 2.0 - 1.0)) < 0.005, ratios
+
+
+def test_screening_fit_has_the_pair_error_of_the_least_squares():
+    # the screen that skips orders that cannot win solves the unconstrained least squares of
+    # every channel at once, rounded differently; its pair error must be that of _mn_fit's
+    from pbrbench.camera import bracket_exposure_times
+    from pbrbench.infer.hdr.mitsunaga1999 import _mn_fit, _mn_fit_free, _moments
+    from pbrbench.perf.hdr import synthetic_radiance
+
+    L = synthetic_radiance(48, seed=3)
+    br = Camera("film", bit_depth=8, read_noise=0.002).capture(L, bracket_exposure_times(L, stops=1.0, count=5, headroom=0.9), seed=1)
+    Z, K = br.images.astype(float) / 255, br.images.shape[0]
+    rows = []
+    for c in range(3):
+        ok = (Z[:-1, ..., c] > 0) & (Z[:-1, ..., c] < 1) & (Z[1:, ..., c] > 0) & (Z[1:, ..., c] < 1)
+        kk = np.nonzero(ok)[0]
+        rows.append((Z[:-1, ..., c][ok], Z[1:, ..., c][ok], kk))
+    moms = np.stack([_moments(ma, mb, kk, K - 1, 10) for ma, mb, kk in rows])
+    R = br.exposure_times[:-1] / br.exposure_times[1:]
+
+    def pair_error(coefs):
+        P = np.polynomial.polynomial.polyval
+        return sum(np.sum((P(ma, cf) - R[kk] * P(mb, cf)) ** 2) for (ma, mb, kk), cf in zip(rows, coefs, strict=True))
+
+    for deg in (1, 3, 6, 10):
+        for black in (True, False):
+            ref = pair_error([_mn_fit(m, R, deg, black, 1 / 255, False) for m in moms])
+            # (the screen allows 1e-4: an order is skipped only if its error exceeds the bound by that)
+            assert pair_error(_mn_fit_free(moms, R, deg, black)) == pytest.approx(ref, rel=1e-5)

@@ -11,7 +11,7 @@ returning the (H, W, C) float32 radiance, > 0 everywhere and defined up to one g
 Adding a merge method is one new module in this package (named after its paper, built on the
 shared checks and helpers of :mod:`pbrbench.infer.hdr._common`: ``as_stack``, ``check_times``,
 ``check_response``, ``response_table``, ``check_noise_model``, ``estimate_noise``,
-``fill_unexposed``, ``merge_output``) plus one line in :data:`MERGE_METHODS`.
+``fill_unexposed`` / ``unexposed_bounds``, ``merge_output``) plus one line in :data:`MERGE_METHODS`.
 
 Methods
 -------
