@@ -40,7 +40,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 9  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 10  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
 SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)

@@ -203,8 +203,8 @@ def test_predicted_standard_errors_match_the_spread_over_render_seeds(tmp_path):
             for s in res["scores"]:
                 if s["metric"] in ("normal_mean_deg", "albedo_rel_err", "height_rmse"):
                     per.setdefault((cond, s["algorithm"], s["metric"]), []).append((s["value"], s["uncertainty"]))
-    ratios = []
-    for vs in per.values():
+    ratios, keys = [], []
+    for key, vs in per.items():
         v = np.array([x for x, _ in vs])
         u = np.array([e for _, e in vs])
         assert np.all(np.isfinite(u))
@@ -212,9 +212,11 @@ def test_predicted_standard_errors_match_the_spread_over_render_seeds(tmp_path):
         # by rounding, not Monte Carlo noise: the comparison floor (1e-6 absolute) covers them
         if abs(v.mean()) > 1e-4:
             ratios.append(np.var(v, ddof=1) / np.mean(u ** 2))
+            keys.append(key)
     pooled = math.sqrt(float(np.mean(ratios)))
     print(f"observed / predicted standard error, pooled over {len(ratios)} scores: {pooled:.2f}")
-    assert 0.5 < pooled < 2.0, pooled
+    worst = sorted(zip(ratios, keys, strict=True), reverse=True)[:5]
+    assert 0.5 < pooled < 2.0, (pooled, [(round(math.sqrt(r), 2), k) for r, k in worst])
 
 
 def test_a_replicate_that_changes_nothing_the_job_read_is_not_scored_again():
