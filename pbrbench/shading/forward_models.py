@@ -380,22 +380,18 @@ def _load_form_factors(path, n: int):
 
 def _save_form_factors(path, F, vis: bool) -> None:
     """Write atomically; a full or read-only disk only costs the cache (never the run)."""
-    import os
-    import tempfile
+    from pbrbench.io import atomic_path
 
     if path is None:
         return
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=".tmp")
-        with os.fdopen(fd, "wb") as f:
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez(f, F=F, visibility=np.bool_(vis))
-        os.replace(tmp, path)
     except OSError:
-        try:
-            os.unlink(tmp)
-        except (OSError, UnboundLocalError):
-            pass
+        pass
+
+
 _INDEX: OrderedDict = OrderedDict()
 
 
