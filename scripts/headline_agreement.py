@@ -45,6 +45,11 @@ def main(argv):
             bad.append((k, x["value"], y["value"], tol))
     n = len(common)
     print(f"{n - len(bad)} of {n} headline cells agree within 2 combined standard errors ({100 * (n - len(bad)) / max(n, 1):.1f} %)")
+    unst = {k for k in common if a[k].get("unstable") or b[k].get("unstable")}
+    ns = n - len(unst)
+    bs = sum(1 for k, *_ in bad if k not in unst)
+    print(f"  without the {len(unst)} cells the report shades as bimodal in either run: {ns - bs} of {ns} "
+          f"({100 * (ns - bs) / max(ns, 1):.1f} %)")
     for task in sorted({k[0] for k in common}):
         nt = sum(1 for k in common if k[0] == task)
         bt = sum(1 for k, *_ in bad if k[0] == task)
