@@ -301,10 +301,12 @@ def known_variants() -> list[str] | None:
     """The variants of the installed mitsuba build, read from its ``config.py`` without importing
     mitsuba (which would load drjit); None when that cannot be read."""
     import ast
-    import importlib.util
+    import importlib.machinery
 
     try:
-        spec = importlib.util.find_spec("mitsuba")
+        # the path finder, not importlib.util.find_spec: once mitsuba is imported, sys.modules holds
+        # its variant alias module, whose spec has no package folder (and no config.py)
+        spec = importlib.machinery.PathFinder.find_spec("mitsuba")
     except (ImportError, ValueError):
         return None
     if spec is None or not spec.submodule_search_locations:

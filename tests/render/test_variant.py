@@ -97,3 +97,14 @@ def test_best_llvm_is_new_enough():
         pytest.skip("no libLLVM >= 16 installed (set-up installs libllvm19 as root)")
     assert llvm_major(best) >= MIN_LLVM
     assert all(v is None or v < MIN_LLVM or v <= llvm_major(best) for _, v in found)
+
+
+def test_known_variants_are_read_even_after_mitsuba_is_imported():
+    # once imported, sys.modules["mitsuba"] is mitsuba's variant alias module (no package folder);
+    # the variants still come from the installed package's config.py
+    import mitsuba  # noqa: F401
+
+    from pbrbench.render.variant import known_variants
+
+    v = known_variants()
+    assert v and "scalar_rgb" in v
