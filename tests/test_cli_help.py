@@ -24,3 +24,13 @@ def test_every_command_help_prints(command, capsys):
 def test_top_level_help_prints(capsys):
     assert main(["--help"]) == 0
     assert "usage:" in capsys.readouterr().out
+
+
+def test_the_command_lines_hdr_merge_default_is_merge_hdrs():
+    import inspect
+
+    from pbrbench.cli.main import build_parser
+    from pbrbench.infer.hdr import merge_hdr
+
+    args = build_parser().parse_args(["infer", "hdr", "somewhere", "--out", "x"])
+    assert args.merge == inspect.signature(merge_hdr).parameters["method"].default == "granados2010"

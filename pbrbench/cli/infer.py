@@ -67,11 +67,13 @@ def _add_retinex_options(rx):
 
 def _add_hdr_options(hd):
     from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
+    from pbrbench.infer.hdr.merge import DEFAULT_MERGE
 
     hd.add_argument("dir", metavar="DIR")
     hd.add_argument("--out", required=True, metavar="OUT")
     hd.add_argument("--method", choices=list(CALIBRATION_METHODS), default="debevec1997", help="default: debevec1997")
-    hd.add_argument("--merge", choices=list(MERGE_METHODS), default="debevec1997", help="default: debevec1997")
+    hd.add_argument("--merge", choices=list(MERGE_METHODS), default=DEFAULT_MERGE,
+                    help=f"default: {DEFAULT_MERGE} (merge_hdr's)")
     hd.set_defaults(func=run_hdr)
 
 

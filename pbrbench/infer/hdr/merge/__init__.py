@@ -32,7 +32,10 @@ from pbrbench.checks import call_method
 from pbrbench.infer.hdr.merge.debevec1997 import MERGE_WEIGHTINGS, merge_debevec1997
 from pbrbench.infer.hdr.merge.granados2010 import merge_granados2010
 
-__all__ = ["MERGE_METHODS", "MERGE_WEIGHTINGS", "merge_debevec1997", "merge_granados2010", "merge_hdr"]
+__all__ = ["DEFAULT_MERGE", "MERGE_METHODS", "MERGE_WEIGHTINGS", "merge_debevec1997", "merge_granados2010",
+           "merge_hdr"]
+
+DEFAULT_MERGE = "granados2010"   # merge_hdr's default, and the command line's
 
 MERGE_METHODS = {
     "debevec1997": merge_debevec1997,
@@ -40,7 +43,7 @@ MERGE_METHODS = {
 }
 
 
-def merge_hdr(images, exposure_times, response, *, method: str = "granados2010", **options):
+def merge_hdr(images, exposure_times, response, *, method: str = DEFAULT_MERGE, **options):
     """Merge an exposure bracket into linear radiance with the merge method ``method``.
 
     Parameters
