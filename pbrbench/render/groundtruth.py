@@ -301,7 +301,13 @@ class _Renderer:
         integ = {"type": "aov", "aovs": "alb:albedo,nn:sh_normal,pp:position,si:shape_index",
                  "cov": {"type": "path", "max_depth": 1}}
         per = max(1, self.spp // G)
-        scene = mi.load_dict(scene_dict(mi, self.spec, self.res, per, integrator=integ, drop_occluders=False), optimize=False)
+        level = mi.log_level()
+        mi.set_log_level(mi.LogLevel.Error)   # samplers round some counts up, with a warning: use what they take
+        try:
+            scene = mi.load_dict(scene_dict(mi, self.spec, self.res, per, integrator=integ, drop_occluders=False),
+                                 optimize=False)
+        finally:
+            mi.set_log_level(level)
         per = int(scene.sensors()[0].sampler().sample_count())
         M = np.array(scene.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)
         films = []
