@@ -39,7 +39,6 @@ import math
 from functools import lru_cache
 
 CONFIDENCE = 0.95    # two-sided level of the intervals and of "a difference is an effect"
-SIGNIFICANCE = 2.0   # the same, in standard errors, for infinitely many degrees of freedom (z ~ 1.96)
 # largest gap between sorted replicates / their range above which the replicates are bimodal
 # (a discrete choice flipped): the 99.9th percentile of the statistic for G Gaussian replicates
 # (Monte Carlo, 10^6 draws each; tests/test_uncertainty_stats.py re-measures it)
@@ -189,15 +188,25 @@ def significant(difference: float, se: float, floor: float = 0.0, dof: float = m
     return abs(difference) > limit(se, dof) + floor
 
 
-def paired(x: dict, ref: dict) -> tuple[float, float]:
-    """``(SE, dof)`` of ``x.value - ref.value`` for two score dicts.  When both come from one
-    ground truth (the same render, e.g. global and local of one scene) with the same number of
-    replicates, the jackknife of the difference of the paired replicates, which keeps their
-    correlation; otherwise the two are independent and their errors add in quadrature."""
+def _paired_jackknife(x: dict, ref: dict):
+    """``(SE, bias, dof)`` of the jackknife of ``x.value - ref.value`` on the paired replicates'
+    differences when both scores come from one ground truth (the same render, e.g. global and
+    local of one scene) with the same number of replicates; None otherwise."""
     same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
     rx, rr = replicates_of(x), replicates_of(ref)
     if same_gt and rx and rr and len(rx) == len(rr) and finite(x.get("value")) and finite(ref.get("value")):
-        se, _, dof = jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])
+        return jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])
+    return None
+
+
+def paired(x: dict, ref: dict) -> tuple[float, float]:
+    """``(SE, dof)`` of ``x.value - ref.value`` for two score dicts: the paired jackknife when both
+    come from one ground truth, which keeps their correlation (:func:`_paired_jackknife`), plus
+    each side's noise-seed part; otherwise the two are independent and their errors add in
+    quadrature."""
+    jk = _paired_jackknife(x, ref)
+    if jk is not None:
+        se, _, dof = jk
         parts = [(se * se, dof)]
         for s in (x, ref):
             if finite(s.get("rep_noise")):
@@ -207,7 +216,7 @@ def paired(x: dict, ref: dict) -> tuple[float, float]:
     ux, ur = x.get("uncertainty"), ref.get("uncertainty")
     if not (finite(ux) and finite(ur)):
         return float("nan"), 0.0
-    return combined((ux, _dof(x)), (ur, _dof(ref)))
+    return combined((ux, dof_of(x)), (ur, dof_of(ref)))
 
 
 def bias_of(s: dict) -> float:
@@ -219,13 +228,10 @@ def bias_of(s: dict) -> float:
 
 
 def paired_bias(x: dict, ref: dict) -> float:
-    """Monte Carlo bias of ``x.value - ref.value``: the jackknife of the paired replicates' differences
-    when both come from one ground truth, else the difference of the two biases."""
-    same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
-    rx, rr = replicates_of(x), replicates_of(ref)
-    if same_gt and rx and rr and len(rx) == len(rr) and finite(x.get("value")) and finite(ref.get("value")):
-        return jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])[1]
-    return bias_of(x) - bias_of(ref)
+    """Monte Carlo bias of ``x.value - ref.value``: the paired jackknife's when both come from one
+    ground truth, else the difference of the two biases."""
+    jk = _paired_jackknife(x, ref)
+    return jk[1] if jk is not None else bias_of(x) - bias_of(ref)
 
 
 def paired_se(x: dict, ref: dict) -> float:
@@ -233,13 +239,10 @@ def paired_se(x: dict, ref: dict) -> float:
     return paired(x, ref)[0]
 
 
-def _dof(s: dict) -> float:
+def dof_of(s: dict) -> float:
     """A stored score's degrees of freedom (1 for scores stored before they were recorded)."""
     d = s.get("dof")
     return float(d) if finite(d) and d > 0 else 1.0
-
-
-dof_of = _dof
 
 
 # ----------------------------------------------------------------------------- two measurements
