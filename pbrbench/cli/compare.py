@@ -86,6 +86,12 @@ def run(args) -> int:
             b = store.resolve_run(args.run_b)
             b_scores, run_b = store.scores(b, task=args.task), store.get_run(b)
     if args.store_b is not None:
+        from pathlib import Path
+
+        from pbrbench.errors import UserError
+
+        if not Path(args.store_b).is_file():
+            raise UserError(f"--store-b {args.store_b}: no results database there; pass the store of RUN_B")
         with open_store(st.with_(store=args.store_b)) as store_b:
             b = store_b.resolve_run(args.run_b)
             b_scores, run_b = store_b.scores(b, task=args.task), store_b.get_run(b)
