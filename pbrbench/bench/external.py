@@ -23,6 +23,19 @@ the inputs it is handed are the exported ones (their sha256), so predictions mad
 renders are refused instead of scored.  A missing, mis-shaped or non-finite prediction file is
 one failed score with a one-line message naming the file; the other jobs are scored.  The
 result is stored as a run (report, history, compare).
+
+An export may have been handed over by someone else, so ``evaluate`` trusts none of it:
+
+* ``manifest.json`` and every ``job.json`` are read with their types checked (a damaged file is
+  one :class:`~pbrbench.errors.UserError` line naming it, before a run is created);
+* every folder they name must be a relative path without ``..`` that resolves (symbolic links
+  followed) inside the export, and inside ``--predictions`` too; a prediction file that is a
+  link out of the predictions folder is refused;
+* a prediction file must be a regular file whose header (``.npy``: the checks of
+  :func:`pbrbench.scene.data.read_npy`, nothing unpickled; PNG, EXR, TIFF, PFM: their declared
+  size) announces at most :data:`MAX_PREDICTION_BYTES` before its data is read; its values and
+  mask must be finite; and a score of the predictions that is not finite (an overflow) is
+  refused: the job is scored as failed, with its reason.
 """
 
 from __future__ import annotations
@@ -30,17 +43,22 @@ from __future__ import annotations
 import contextvars
 import hashlib
 import json
+import math
+import os
+import stat
 from dataclasses import replace
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 
 import numpy as np
 
 from pbrbench.errors import UserError
+from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
 FORMAT = "pbrbench-export/1"
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
+MAX_PREDICTION_BYTES = MAX_DATA_BYTES   # largest array a prediction file may hold (as float64), as a scene data file
 
 CONVENTIONS = {
     "arrays": "images (H, W[, C]) row 0 at the top, stacks (K, H, W[, C]); .npy files hold the exact float64 "
@@ -65,6 +83,11 @@ def array_digest(a) -> str:
     h = hashlib.sha256(f"{a.dtype.str}{a.shape}".encode())
     h.update(a.tobytes())
     return h.hexdigest()
+
+
+def one_line(exc: BaseException) -> str:
+    """``TypeName: message`` of ``exc`` on one line."""
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())}"[:300]
 
 
 def _jsonable(v):
@@ -269,33 +292,402 @@ def _readme(task, manifest) -> str:
             f"Conventions: {json.dumps(CONVENTIONS, indent=1)}\n")
 
 
-# ----------------------------------------------------------------------------- evaluate
+# ----------------------------------------------------------------------------- evaluate: the export's files
+# An export may come from someone else: every path it names must stay inside it, every JSON file
+# must have the shape pbrbench writes, and every prediction file is checked (header, size, dtype,
+# shape, finite values) before its data is read.
+MAX_JSON_BYTES = 64 * 2**20     # largest manifest.json / job.json read
+MAX_TEXT_BYTES = 4096           # largest <name>.txt (one number)
+MAX_SEED = 2**62                # largest seed a manifest may give
+_FIX_EXPORT = "the export is damaged: export it again (`pbrbench export TASK --out DIR`)"
+
+
+def _damaged(path, what: str) -> UserError:
+    return UserError(f"{path}: {what}; {_FIX_EXPORT}")
+
+
+def _kind(v) -> str:
+    """The JSON name of ``v``'s type, for messages."""
+    if v is None:
+        return "null"
+    if isinstance(v, bool):
+        return "a boolean"
+    if isinstance(v, (int, float)):
+        return f"the number {v!r}"[:60]
+    if isinstance(v, str):
+        return f"the string {v!r}"[:60]
+    return "a list" if isinstance(v, list) else "an object" if isinstance(v, dict) else type(v).__name__
+
+
+def _finite_float(text: str) -> float:
+    v = float(text)
+    if not math.isfinite(v):
+        raise ValueError(f"the number {text[:40]} is out of range")
+    return v
+
+
+def _no_constant(text: str):
+    raise ValueError(f"{text} is not a JSON number")
+
+
+def read_json_file(path, *, shown=None):
+    """The JSON value in the file ``path`` (at most :data:`MAX_JSON_BYTES`; numbers finite:
+    ``NaN``, ``Infinity`` and ``1e999`` are refused); :class:`~pbrbench.errors.UserError` with one
+    line naming ``shown`` (default: ``path``) otherwise.
+
+    Parameters
+    ----------
+    path : path-like
+        The file to read.
+    shown : path-like, optional
+        The name the messages give the file (the path as the manifest wrote it).
+    """
+    p, shown = Path(path), shown if shown is not None else path
+    try:
+        st = p.stat()
+    except OSError as e:
+        raise UserError(f"{shown}: cannot be read ({e.strerror or e}); check that it exists and its permissions") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise _damaged(shown, "is not a file")
+    if st.st_size > MAX_JSON_BYTES:
+        raise _damaged(shown, f"holds {st.st_size} bytes, above the {MAX_JSON_BYTES} bytes pbrbench reads")
+    try:
+        data = p.read_bytes()
+    except OSError as e:
+        raise UserError(f"{shown}: cannot be read ({e.strerror or e}); check its permissions") from None
+    try:
+        return json.loads(data, parse_float=_finite_float, parse_constant=_no_constant)
+    except RecursionError:
+        raise _damaged(shown, "not valid JSON (nested too deeply)") from None
+    except ValueError as e:   # UnicodeDecodeError and JSONDecodeError too
+        raise _damaged(shown, f"not valid JSON ({' '.join(str(e).split())[:160]})") from None
+
+
+def _field(d: dict, key: str, types, path, where: str = "", *, optional: bool = False):
+    """``d[key]`` when it is one of ``types`` (a bool is not a number), else a damaged-file error."""
+    if key not in d:
+        if optional:
+            return None
+        raise _damaged(path, f"{where}{key!r} is missing")
+    v = d[key]
+    types = types if isinstance(types, tuple) else (types,)
+    if not isinstance(v, types) or (isinstance(v, bool) and bool not in types):
+        want = " or ".join({str: "a string", int: "an integer", float: "a number", bool: "true or false",
+                            list: "a list", dict: "an object", type(None): "null"}[t] for t in types)
+        raise _damaged(path, f"{where}{key!r} is {_kind(v)}, expected {want}")
+    return v
+
+
+def _check_relative(rel, path, where: str) -> str:
+    """``rel`` when it is a plain relative path (no ``..``, not absolute, no control characters)."""
+    if not isinstance(rel, str) or not rel.strip():
+        raise _damaged(path, f"{where} is {_kind(rel)}, expected a relative folder path")
+    pure = PurePosixPath(rel)
+    if (pure.is_absolute() or Path(rel).is_absolute() or rel.startswith(("/", "\\")) or ".." in pure.parts
+            or ".." in rel.split("\\") or any(ord(c) < 32 or ord(c) == 127 for c in rel)):
+        raise UserError(f"{path}: {where} {rel!r} is not a plain path inside the export (it is absolute, holds "
+                        f"'..' or control characters): pbrbench reads only files inside the export; {_FIX_EXPORT}")
+    return rel
+
+
+def resolve_inside(root, rel, *, path, where: str) -> Path:
+    """The real path of ``root / rel`` (symbolic links followed), which must lie inside ``root``.
+
+    Parameters
+    ----------
+    root : path-like
+        The folder everything must stay inside (the export, or the predictions folder).
+    rel : str
+        A relative path from a JSON file of the export.
+    path : path-like
+        The JSON file, named by the messages.
+    where : str
+        The field that holds ``rel`` (``jobs[3].folder``), named by the messages.
+
+    Returns
+    -------
+    Path
+        The resolved path (it need not exist).
+
+    Raises
+    ------
+    UserError
+        ``rel`` is absolute, holds ``..``, or resolves outside ``root`` (a symbolic link).
+    """
+    _check_relative(rel, path, where)
+    base = Path(root).resolve()
+    try:
+        real = (base / rel).resolve()
+    except (OSError, RuntimeError) as e:   # a symlink loop
+        raise UserError(f"{path}: {where} {rel!r} cannot be resolved ({e}); {_FIX_EXPORT}") from None
+    if not real.is_relative_to(base):
+        raise UserError(f"{path}: {where} {rel!r} resolves to {real}, outside {base} (a symbolic link?): pbrbench "
+                        f"reads only files inside the folder; replace the link by the folder itself or export again")
+    return real
+
+
 def read_manifest(folder) -> dict:
+    """The checked ``manifest.json`` of the export ``folder``.
+
+    Parameters
+    ----------
+    folder : path-like
+        A folder written by :func:`export_task`.
+
+    Returns
+    -------
+    dict
+        The manifest: ``task``, ``quality``, ``seed`` and ``jobs`` (each with a ``key`` and a
+        ``folder`` that lies inside ``folder``) have the types pbrbench writes.
+
+    Raises
+    ------
+    UserError
+        One line naming the file: no manifest, invalid JSON, a wrong type, a missing key, a job
+        folder outside the export.
+    """
+    from pbrbench.render.quality import PRESETS
+
     p = Path(folder) / MANIFEST
     if not p.is_file():
         raise UserError(f"{folder}: no {MANIFEST}; pass a folder written by `pbrbench export TASK --out DIR`")
-    try:
-        m = json.loads(p.read_text())
-    except ValueError as e:
-        raise UserError(f"{p}: not valid JSON ({e})") from None
+    m = read_json_file(p)
+    if not isinstance(m, dict):
+        raise _damaged(p, f"holds {_kind(m)}, expected a JSON object")
     if m.get("format") != FORMAT:
         raise UserError(f"{p}: format {m.get('format')!r}, expected {FORMAT!r}; export again with this pbrbench")
+    _field(m, "task", str, p)
+    if _field(m, "quality", str, p) not in PRESETS:
+        raise _damaged(p, f"'quality' is {m['quality']!r}, not one of {', '.join(PRESETS)}")
+    if not 0 <= _field(m, "seed", int, p) <= MAX_SEED:
+        raise _damaged(p, f"'seed' is {m['seed']}, expected an integer from 0 to {MAX_SEED}")
+    _field(m, "replicates", bool, p, optional=True)
+    jobs = _field(m, "jobs", list, p)
+    if not jobs:
+        raise _damaged(p, "'jobs' is empty")
+    keys, folders = set(), set()
+    for i, e in enumerate(jobs):
+        if not isinstance(e, dict):
+            raise _damaged(p, f"jobs[{i}] is {_kind(e)}, expected an object")
+        key = _field(e, "key", str, p, f"jobs[{i}].")
+        rel = _field(e, "folder", str, p, f"jobs[{i}].")
+        real = resolve_inside(folder, rel, path=p, where=f"jobs[{i}].folder")
+        if key in keys or real in folders:
+            raise _damaged(p, f"jobs[{i}] repeats the {'key ' + repr(key) if key in keys else 'folder ' + repr(rel)} "
+                              "of an earlier job")
+        keys.add(key)
+        folders.add(real)
     return m
 
 
+def _check_inputs_entry(inputs, path, where: str) -> None:
+    if not isinstance(inputs, dict):
+        raise _damaged(path, f"{where} is {_kind(inputs)}, expected an object")
+    for name, entry in inputs.items():
+        if not isinstance(entry, dict):
+            raise _damaged(path, f"{where}.{name} is {_kind(entry)}, expected an object")
+        if "sha256" in entry:
+            _field(entry, "sha256", str, path, f"{where}.{name}.")
+        elif "value" not in entry:
+            raise _damaged(path, f"{where}.{name} has neither 'sha256' nor 'value'")
+
+
+def read_job_records(export_dir, manifest: dict, predictions_dir=None) -> dict:
+    """Every job's checked ``job.json`` (job key -> record) of the export ``export_dir``, whose
+    manifest :func:`read_manifest` returned; every folder a record names (the job's, its
+    replicates') lies inside the export, and inside ``predictions_dir`` too when given.
+
+    Raises
+    ------
+    UserError
+        One line naming the job.json: missing, invalid JSON, a wrong type, a missing key, a key or
+        folder that differs from the manifest's, a folder outside the export.
+    """
+    export_dir = Path(export_dir)
+    mp = export_dir / MANIFEST
+    roots = [export_dir] + ([Path(predictions_dir)] if predictions_dir is not None else [])
+    records = {}
+    for i, e in enumerate(manifest["jobs"]):
+        jp = export_dir / e["folder"] / "job.json"
+        real = resolve_inside(export_dir, e["folder"], path=mp, where=f"jobs[{i}].folder")
+        if not real.is_dir():
+            raise UserError(f"{export_dir / e['folder']}: {'missing' if not real.exists() else 'not a folder'}; "
+                            "the export is incomplete (export again)")
+        jreal = resolve_inside(export_dir, f"{e['folder']}/job.json", path=mp, where=f"jobs[{i}].folder's job.json")
+        if not jreal.exists():
+            raise UserError(f"{jp}: missing; the export is incomplete (export again)")
+        rec = read_json_file(jreal, shown=jp)
+        if not isinstance(rec, dict):
+            raise _damaged(jp, f"holds {_kind(rec)}, expected a JSON object")
+        if _field(rec, "key", str, jp) != e["key"]:
+            raise _damaged(jp, f"'key' is {rec['key']!r}, the manifest's is {e['key']!r}")
+        if _field(rec, "folder", str, jp) != e["folder"]:
+            raise _damaged(jp, f"'folder' is {rec['folder']!r}, the manifest's is {e['folder']!r}")
+        _check_inputs_entry(_field(rec, "inputs", dict, jp), jp, "inputs")
+        reps = _field(rec, "replicates", (list, type(None)), jp, optional=True) or []
+        for r, rep in enumerate(reps):
+            if not isinstance(rep, dict):
+                raise _damaged(jp, f"replicates[{r}] is {_kind(rep)}, expected an object")
+            _field(rep, "folder", str, jp, f"replicates[{r}].")
+            _check_inputs_entry(_field(rep, "inputs", dict, jp, f"replicates[{r}]."), jp, f"replicates[{r}].inputs")
+        for root in roots:
+            for k, rel in enumerate([rec["folder"]] + [rep["folder"] for rep in reps]):
+                resolve_inside(root, rel, path=jp, where="folder" if k == 0 else f"replicates[{k - 1}].folder")
+        records[e["key"]] = rec
+    return records
+
+
 def _find(folder: Path, name: str) -> Path | None:
+    """The first ``<name><suffix>`` in ``folder`` that exists (a file or not: the reader says)."""
     for ext in _SUFFIXES:
         p = folder / f"{name}{ext}"
-        if p.is_file():
+        if os.path.lexists(p):
             return p
     return None
 
 
-def load_prediction(task, folder: Path, inputs: dict, record: dict) -> dict:
-    """The prediction files of one job as arrays (name -> array), checked against the expected
-    shapes and for finite values; ``ValueError`` with one line naming the file otherwise."""
+def _fmt_bytes(n: float) -> str:
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
+        if n < 1024 or unit == "TiB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
+        n /= 1024
+    return f"{n:.2f} TiB"  # pragma: no cover
+
+
+def _check_declared(path, shape, what: str) -> None:
+    """Refuse a file whose header announces more than :data:`MAX_PREDICTION_BYTES` (as float64)."""
+    count = 1
+    for n in shape:
+        count *= max(int(n), 0)
+    if count * 8 > MAX_PREDICTION_BYTES:
+        raise ValueError(f"{path}: its {what} announces shape {tuple(int(n) for n in shape)} ({_fmt_bytes(count * 8)} "
+                         f"as float64), above the {_fmt_bytes(MAX_PREDICTION_BYTES)} limit for a prediction file; "
+                         "write an array of the expected shape")
+
+
+def _png_shape(path) -> tuple:
+    import struct
+
     from pbrbench import io
 
+    with open(path, "rb") as f:
+        head = f.read(33)
+    if head[:8] != io.PNG_SIGNATURE or head[12:16] != b"IHDR" or len(head) < 33:
+        raise ValueError(f"{path}: not a PNG file (it starts with {head[:8]!r}); write a PNG, .exr or .npy file")
+    w, h, depth, ctype = struct.unpack(">IIBB", head[16:26])
+    return (h, w, io._PNG_CHANNELS.get(ctype, 4))
+
+
+def _exr_shape(path) -> tuple:
+    import OpenEXR
+
+    try:
+        with OpenEXR.File(str(path), header_only=True) as f:   # the header lives as long as the file
+            h = f.header()
+            (x0, y0), (x1, y1) = (tuple(int(v) for v in c) for c in h["dataWindow"])
+            channels = len(h.get("channels") or ())
+    except Exception as e:  # noqa: BLE001 - OpenEXR raises plain exceptions
+        raise ValueError(f"{path}: not a readable EXR file ({' '.join(str(e).split())[:160]}); write it again") from None
+    return (y1 - y0 + 1, x1 - x0 + 1, max(channels, 1))
+
+
+def _pfm_shape(path) -> tuple:
+    with open(path, "rb") as f:
+        kind, dims = f.readline(64).strip(), f.readline(64).split()
+    if kind not in (b"PF", b"Pf") or len(dims) != 2 or not all(d.isdigit() for d in dims):
+        raise ValueError(f"{path}: not a PFM file (damaged header); write it again, or write a .npy or .exr file")
+    return (int(dims[1]), int(dims[0]), 3 if kind == b"PF" else 1)
+
+
+def _tif_shape(path) -> tuple:
+    import tifffile
+
+    with tifffile.TiffFile(str(path)) as t:
+        return tuple(t.series[0].shape)
+
+
+def _read_file(path: Path, real: Path) -> np.ndarray:
+    """The array in one prediction file, its header checked before its data is read."""
+    from pbrbench import io
+    from pbrbench.errors import SceneError
+    from pbrbench.scene.data import read_npy
+
+    suffix = path.suffix.lower()
+    if suffix == ".txt":
+        if real.stat().st_size > MAX_TEXT_BYTES:
+            raise ValueError(f"{path}: holds {real.stat().st_size} bytes; write one number")
+        try:
+            return np.asarray(float(real.read_bytes().decode("utf-8").split()[0]))
+        except (ValueError, IndexError):
+            raise ValueError(f"{path}: not a number; write one number") from None
+    if suffix == ".npy":
+        try:
+            return read_npy(real, where=str(path), max_bytes=MAX_PREDICTION_BYTES)
+        except SceneError as e:
+            raise ValueError(str(e).replace("a scene data file", "a prediction file")) from None
+    shape = {".png": _png_shape, ".exr": _exr_shape, ".pfm": _pfm_shape, ".tif": _tif_shape,
+             ".tiff": _tif_shape}[suffix](real)
+    _check_declared(path, shape, "header")
+    return np.asarray(io.read_image(real))
+
+
+def _shape_text(pred, want) -> tuple:
+    if pred.shape == "image":
+        return want
+    return tuple(w if w is not None else tok.strip() for w, tok in zip(want, pred.shape.split(","), strict=False))
+
+
+def _read_prediction(path: Path, pred, want, root: Path | None) -> np.ndarray:
+    """One prediction file as an array: inside ``root``, a regular file of a bounded size, read by
+    :func:`_read_file`; ``ValueError`` with one line naming the file and the fix otherwise."""
+    try:
+        real = path.resolve()
+    except (OSError, RuntimeError) as e:
+        raise ValueError(f"{path}: cannot be resolved ({e}); write the prediction as a plain file") from None
+    if root is not None and not real.is_relative_to(root):
+        raise ValueError(f"{path}: a symbolic link to {real}, outside the predictions folder {root}; write the "
+                         "prediction file itself there")
+    try:
+        st = real.stat()
+    except OSError as e:
+        raise ValueError(f"{path}: cannot be read ({e.strerror or e}); write it again") from None
+    if not stat.S_ISREG(st.st_mode):
+        what = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise ValueError(f"{path}: is {what}; write {pred.name} {pred.shape} as a file ({pred.meaning})")
+    if st.st_size > MAX_PREDICTION_BYTES + 2**20:
+        raise ValueError(f"{path}: holds {_fmt_bytes(st.st_size)}, above the {_fmt_bytes(MAX_PREDICTION_BYTES)} limit "
+                         f"for a prediction file; write an array of shape {_shape_text(pred, want)}")
+    try:
+        with np.errstate(all="ignore"):
+            return _read_file(path, real)
+    except ValueError as e:
+        msg = " ".join(str(e).split())
+        raise ValueError(msg if str(path) in msg else f"{path}: {msg}") from None
+    except PermissionError as e:
+        raise ValueError(f"{path}: cannot be read ({e.strerror}); fix its permissions") from None
+    except Exception as e:  # noqa: BLE001 - a damaged file of any format (EOFError, struct.error, MemoryError ...)
+        raise ValueError(f"{path}: cannot be read ({one_line(e)[:160]}); write it again "
+                         f"({pred.name} {pred.shape}: {pred.meaning})") from None
+
+
+def load_prediction(task, folder: Path, inputs: dict, record: dict, *, root: Path | None = None) -> dict:
+    """The prediction files of one job as arrays (name -> array), checked against the expected
+    shapes and for finite values; ``ValueError`` with one line naming the file otherwise.
+
+    Parameters
+    ----------
+    task : Task
+        The task (its ``predictions`` say which files to read).
+    folder : Path
+        The job's (or a replicate's) predictions folder.
+    inputs : dict
+        The job's inputs (the mask, the shapes).
+    record : dict
+        The job's ``job.json``.
+    root : Path, optional
+        The resolved predictions folder: a prediction file that resolves outside it (a symbolic
+        link) is refused.
+    """
     mask = inputs.get("mask")
     where = np.asarray(mask, bool) if mask is not None and np.ndim(mask) == 2 else None
     out = {}
@@ -306,28 +698,25 @@ def load_prediction(task, folder: Path, inputs: dict, record: dict) -> dict:
                 raise ValueError(f"{folder / pred.name}.exr (or .npy): missing; write {pred.name} "
                                  f"{pred.shape} ({pred.meaning})")
             continue
-        if path.suffix == ".txt":
-            try:
-                a = np.asarray(float(path.read_text().split()[0]))
-            except (ValueError, IndexError):
-                raise ValueError(f"{path}: not a number; write one number") from None
-        else:
-            a = np.asarray(io.read_image(path))
         want = _expected_shape(task, pred, inputs)
+        a = _read_prediction(path, pred, want, root)
         if a.ndim == len(want) + 1 and a.shape[-1] == 1:
             a = a[..., 0]
+        if a.dtype.kind not in "fiub":
+            raise ValueError(f"{path}: dtype {a.dtype}; write real numbers")
         if pred.kind == "mask":
+            n_bad = int((~np.isfinite(a)).sum()) if a.dtype.kind == "f" else 0
+            if n_bad:
+                raise ValueError(f"{path}: {n_bad} NaN/inf value(s) in a mask; write 0 (outside) or non-zero "
+                                 "(inside), e.g. a bool array or a 0/255 PNG")
             if a.ndim == 3:
                 a = a.any(axis=-1)
             a = a > 0
-        elif a.dtype.kind not in "fiub":
-            raise ValueError(f"{path}: dtype {a.dtype}; write real numbers")
         else:
             a = a.astype(np.float64)
         if a.ndim != len(want) or any(w is not None and s != w for s, w in zip(a.shape, want, strict=False)):
-            shown = tuple(w if w is not None else tok.strip() for w, tok in zip(want, pred.shape.split(","), strict=False)) \
-                if pred.shape != "image" else want
-            raise ValueError(f"{path}: shape {a.shape}, expected {shown} ({pred.name})")
+            raise ValueError(f"{path}: shape {a.shape}, expected {_shape_text(pred, want)} ({pred.name}); write an "
+                             "array of that shape")
         if pred.kind != "mask":
             sel = where if (where is not None and a.shape[:2] == where.shape) else None
             bad = ~np.isfinite(a)
@@ -348,16 +737,24 @@ def load_prediction(task, folder: Path, inputs: dict, record: dict) -> dict:
 class PredictionReader:
     """The algorithm of an evaluated run: for the job being scored it checks that the inputs it
     is handed are the exported ones and returns the job's prediction files (as the task's own
-    algorithms would return them)."""
+    algorithms would return them).
+
+    ``errors`` maps job keys to the one-line reasons their predictions were scored as failed;
+    ``replicate_errors`` those of the replicates' predictions that were refused (the score then
+    has no standard error); ``missing_replicates`` the jobs scored without replicate predictions.
+    """
 
     def __init__(self, task, export_dir: Path, predictions_dir: Path, records: dict):
         self.task = task
         self.export_dir = Path(export_dir)
         self.predictions_dir = Path(predictions_dir)
+        self.root = self.predictions_dir.resolve()
         self.records = records          # job key -> job.json
         self.errors: dict[str, str] = {}
-
+        self.replicate_errors: dict[str, str] = {}
         self.missing_replicates: set[str] = set()   # jobs scored without replicate predictions
+        self.loaded: Path | None = None              # the predictions folder of the last call
+        self.largest: float = 0.0                    # the largest |value| it read
 
     def folder(self, record) -> Path:
         return self.predictions_dir / record["folder"]
@@ -386,22 +783,30 @@ class PredictionReader:
         raise ValueError(f"{self.export_dir / record['folder']}: input {bad!r} differs from the exported one "
                          "(other renders or another pbrbench?); export again and rerun your program")
 
+    def _load(self, folder, inputs, record) -> dict:
+        files = load_prediction(self.task, folder, inputs, record, root=self.root)
+        self.largest = max([float(np.max(np.abs(a), initial=0.0)) for a in files.values() if a.dtype != bool]
+                           + [0.0])
+        return files
+
     def load(self, record, inputs) -> dict:
         """The prediction files for ``inputs`` (the job's, or a replicate's)."""
         folder = self._check_inputs(record, inputs)
+        self.loaded, self.largest = folder, 0.0
         if folder != self.folder(record):
             if not any(_find(folder, p.name) is not None for p in self.task.predictions):
                 self.missing_replicates.add(record["key"])
                 raise _NoReplicate(f"{folder}: no prediction for this replicate")
             try:
-                return load_prediction(self.task, folder, inputs, record)
-            except ValueError:
+                return self._load(folder, inputs, record)
+            except ValueError as e:
                 self.missing_replicates.add(record["key"])
+                self.replicate_errors.setdefault(record["key"], " ".join(str(e).split()))
                 raise _NoReplicate(f"{folder}: no prediction for this replicate") from None
-        return load_prediction(self.task, folder, inputs, record)
+        return self._load(folder, inputs, record)
 
     def files(self, record) -> dict:
-        return load_prediction(self.task, self.folder(record), {}, record)
+        return load_prediction(self.task, self.folder(record), {}, record, root=self.root)
 
     def __call__(self, *args, **kwargs):
         job = _JOB.get()
@@ -417,6 +822,14 @@ class PredictionReader:
         except ValueError as e:
             self.errors[job.key] = " ".join(str(e).split())
             raise
+        except Exception as e:  # noqa: BLE001 - the task cannot use these files: the job's failure, named
+            msg = f"{self.loaded or self.folder(record)}: the predictions cannot be used ({one_line(e)})"
+            self.errors[job.key] = msg
+            raise ValueError(msg) from None
+
+    def is_replicate(self, record) -> bool:
+        """Whether the last call read a replicate's predictions."""
+        return self.loaded is not None and self.loaded != self.folder(record)
 
 
 class _NoReplicate(RuntimeError):
@@ -425,7 +838,9 @@ class _NoReplicate(RuntimeError):
 
 class EvaluatedTask:
     """A task restricted to the exported jobs, whose run_job tells the reader which job it is
-    scoring (and lets the task score predictions that bypass its calling convention)."""
+    scoring (and lets the task score predictions that bypass its calling convention).  A score
+    of the predictions that is not finite (an overflow: values of 1e308) is refused: the job is
+    scored as failed with a one-line reason."""
 
     def __init__(self, task, records: dict, reader: PredictionReader, predictions_dir: Path):
         self.task = task
@@ -464,38 +879,101 @@ class EvaluatedTask:
             files = self.reader.load(record, inputs)
         except (ValueError, _NoReplicate):
             return None            # the calling-convention route reports the problem
-        return self.task.score_outputs(job, gts, files, algorithm=alg, seed=seed, quality=quality)
+        try:
+            with np.errstate(all="ignore"):
+                return self.task.score_outputs(job, gts, files, algorithm=alg, seed=seed, quality=quality)
+        except Exception as e:  # noqa: BLE001 - predictions the task cannot score: the job's failure, named
+            msg = f"{self.reader.loaded}: the predictions cannot be scored ({one_line(e)})"
+            return self._failed(job, gts, alg, msg, [])
+
+    @staticmethod
+    def _failed(job, gts, alg, msg: str, scores) -> object:
+        """A result holding ``scores`` and one ``failed`` score of ``alg`` (reason ``msg``)."""
+        from pbrbench.tasks import _common as C
+        from pbrbench.tasks.base import JobResult
+
+        book = C.ScoreBook(job, C.scene_hash(gts.get(job.scene)), [alg])
+        book.add(alg.name, {"failed": 1.0}, 0.0)
+        res = JobResult(job, scores=list(scores) + book.scores)
+        res.failures[alg.name] = msg
+        return res
+
+    def _refuse_non_finite(self, job, gts, alg, res):
+        """``res`` with the predictions' scores replaced by ``failed`` when one is not finite."""
+        bad = [s for s in res.scores if s.algorithm == alg.name and s.metric != "failed"
+               and not math.isfinite(float(s.value))]
+        if not bad:
+            return res
+        record = self.records[job.key]
+        folder = self.reader.loaded or self.reader.folder(record)
+        more = f" and {len(bad) - 1} more" if len(bad) > 1 else ""
+        msg = (f"{folder}: the predictions score {bad[0].metric} = {bad[0].value}{more} (not finite; the largest "
+               f"|value| read is {self.reader.largest:.3g}); write finite values of the expected magnitude")
+        if self.reader.is_replicate(record):
+            self.reader.replicate_errors.setdefault(job.key, msg)
+            self.reader.missing_replicates.add(job.key)
+        else:
+            self.reader.errors[job.key] = msg
+        others = [s for s in res.scores if s.algorithm != alg.name]
+        out = self._failed(job, gts, alg, msg, others)
+        for k in ("images", "error_maps", "plots"):
+            getattr(out, k).update(getattr(res, k))
+        out.failures.update({a: m for a, m in res.failures.items() if a != alg.name})
+        return out
 
     def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
         token = _JOB.set(job)
+        self.reader.loaded = None
         try:
             alg = next((a for a in algorithms if a.fn is self.reader), None)
             res = self._direct(job, gts, alg, seed, quality) if alg is not None else None
             if res is None:
-                return self.task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
-            if alg.name in res.failures:
-                self.reader.errors[job.key] = res.failures[alg.name]
-            others = [a for a in algorithms if a is not alg]
-            if others:
-                more = self.task.run_job(job, gts, seed=seed, algorithms=others, quality=quality)
-                res.scores += more.scores
-                for k in ("images", "error_maps", "plots", "failures"):
-                    getattr(res, k).update(getattr(more, k))
-            return res
+                with np.errstate(all="ignore"):
+                    res = self.task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
+            else:
+                others = [a for a in algorithms if a is not alg]
+                if others:
+                    more = self.task.run_job(job, gts, seed=seed, algorithms=others, quality=quality)
+                    res.scores += more.scores
+                    for k in ("images", "error_maps", "plots", "failures"):
+                        getattr(res, k).update(getattr(more, k))
+            if alg is None:
+                return res
+            record = self.records[job.key]
+            if alg.name in res.failures and not self.reader.is_replicate(record):
+                self.reader.errors.setdefault(job.key, res.failures[alg.name])
+            return self._refuse_non_finite(job, gts, alg, res)
         finally:
             _JOB.reset(token)
+
+
+def _file_digest(h, p: Path, root: Path) -> None:
+    """Feed the bytes of the prediction file ``p`` to ``h``: only a regular file inside ``root`` of
+    a bounded size is read (the reader refuses the others, with their reason)."""
+    try:
+        real = p.resolve()
+        st = real.stat()
+        if not real.is_relative_to(root) or not stat.S_ISREG(st.st_mode) or st.st_size > MAX_PREDICTION_BYTES + 2**20:
+            h.update(f"unreadable:{st.st_size}".encode())
+            return
+        with open(real, "rb") as f:
+            for chunk in iter(lambda: f.read(2**20), b""):
+                h.update(chunk)
+    except (OSError, RuntimeError) as e:
+        h.update(f"unreadable:{type(e).__name__}".encode())
 
 
 def prediction_fingerprint(export_dir: Path, predictions_dir: Path, records: dict, task) -> str:
     """sha256 (10 hex digits) of every prediction file: the evaluated algorithm's version hash."""
     h = hashlib.sha256()
+    root = Path(predictions_dir).resolve()
     for key in sorted(records):
         folder = predictions_dir / records[key]["folder"]
         for pred in task.predictions:
             p = _find(folder, pred.name)
             if p is not None:
                 h.update(f"{key}/{p.name}".encode())
-                h.update(p.read_bytes())
+                _file_digest(h, p, root)
     return h.hexdigest()[:10]
 
 
@@ -514,12 +992,7 @@ def evaluate_export(task, export_dir, *, predictions_dir=None, name: str = "exte
     pdir = Path(predictions_dir) if predictions_dir is not None else export_dir
     if not pdir.is_dir():
         raise UserError(f"--predictions {pdir}: no such folder")
-    records = {}
-    for e in manifest["jobs"]:
-        jp = export_dir / e["folder"] / "job.json"
-        if not jp.is_file():
-            raise UserError(f"{jp}: missing; the export is incomplete (export again)")
-        records[e["key"]] = json.loads(jp.read_text())
+    records = read_job_records(export_dir, manifest, pdir if predictions_dir is not None else None)
     reader = PredictionReader(task, export_dir, pdir, records)
     try:
         alg = Algorithm(name, task.name, reader, kind="plugin", version=version,

@@ -3,7 +3,12 @@
 DIR is either a ``pbrbench export`` folder (the predictions sit in its job folders, or in the
 same tree under ``--predictions``; stored as a run: report, history, compare) or a real data set
 on disk: a DiLiGenT-layout folder for photometric stereo (mean / median angular error per
-object) or an MIT-Intrinsic-layout folder for lightness (Grosse et al. 2009 LMSE)."""
+object) or an MIT-Intrinsic-layout folder for lightness (Grosse et al. 2009 LMSE).
+
+An export is checked before it is read (its JSON files, its folders, every prediction file's
+header: :mod:`pbrbench.bench.external`); every refused prediction is one line on stderr naming
+the file and the fix, the good ones are still scored and stored, and the exit status is 1 when
+any prediction failed."""
 
 from __future__ import annotations
 
@@ -12,7 +17,7 @@ import sys
 from pathlib import Path
 
 from pbrbench.cli.common import add_cache, add_store, add_variant, settings
-from pbrbench.errors import UserError
+from pbrbench.errors import UserError, printable
 
 
 def register(sub):
@@ -81,21 +86,29 @@ def _export(args, name: str, d: Path) -> int:
     o, reader = evaluate_export(task, d, predictions_dir=args.predictions, name=args.name, version=args.version,
                                 with_builtins=args.with_builtins, settings=st, source=source,
                                 report=not args.no_report, log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr))
-    n_ok = len(m["jobs"]) - len(reader.errors)
+    failed = dict(reader.errors)
+    for key, tb in o.errors.items():      # a job that crashed: named too, never silent
+        last = [ln for ln in str(tb).splitlines() if ln.strip()]
+        failed.setdefault(key, f"job {key}: not scored ({last[-1].strip() if last else 'unknown error'})")
+    n_ok = len(m["jobs"]) - len(failed)
     print(f"run {o.run_id}: {args.name} scored on {n_ok} of {len(m['jobs'])} job(s) of {task.name} ({m['quality']})")
     for line in summary_lines(o):
         print(line)
-    for msg in reader.errors.values():
-        print(f"pbrbench: prediction failed: {msg}", file=sys.stderr)
+    for msg in failed.values():
+        print(printable(f"pbrbench: prediction failed: {msg}"), file=sys.stderr)
+    for key, msg in reader.replicate_errors.items():
+        if key not in failed:
+            print(printable(f"pbrbench: replicate prediction refused (that score has no ± standard error): {msg}"),
+                  file=sys.stderr)
     if not m.get("replicates"):
         print("note: the export has no replicate inputs (exported with --no-replicates): the scores carry no ± "
               "standard error")
-    elif reader.missing_replicates:
-        print(f"note: {len(reader.missing_replicates)} of {len(m['jobs'])} job(s) have no predictions in their "
+    elif reader.missing_replicates - set(reader.replicate_errors):
+        print(f"note: {len(reader.missing_replicates - set(reader.replicate_errors))} of {len(m['jobs'])} job(s) have no predictions in their "
               "replicates/ folders: those scores carry no ± standard error; run your program on every "
               "jobs/*/replicates/*/ folder too (same inputs, same outputs) to get it")
-    else:
+    elif not reader.replicate_errors:
         print("standard errors: from the predictions on every job's replicate inputs (delete-one-group jackknife)")
     if o.report:
         print(f"report: {o.report.resolve()}")
-    return 1 if reader.errors else 0
+    return 1 if failed or reader.replicate_errors else 0
