@@ -25,7 +25,7 @@ def _floor(task, gt, lights, sigma: float = 2.0):
 
     from pbrbench.infer.photometric_stereo import photometric_stereo_woodham1980
     from pbrbench.metrics.normals import albedo_scores, normal_scores
-    from pbrbench.tasks import _common as C
+    from pbrbench.tasks.common.inputs import grey
 
     glob, direct = task._stack(gt, "radiance"), task._stack(gt, "direct")
     m = gt.mask
@@ -34,7 +34,7 @@ def _floor(task, gt, lights, sigma: float = 2.0):
     r = photometric_stereo_woodham1980(glob - np.where(m, smooth, 0.0), lights, mask=m, shadow_threshold=0.2)
     domain = task._domain(gt, lights)
     sc, _ = normal_scores(r.normals, gt["normals"].astype(float), domain, r.valid)
-    al = albedo_scores(np.pi * r.albedo, C.grey(gt["albedo"]), domain & r.valid)
+    al = albedo_scores(np.pi * r.albedo, grey(gt["albedo"]), domain & r.valid)
     return sc["normal_mean_deg"], al["albedo_rel_err"]
 
 
@@ -42,8 +42,8 @@ def main(argv=None) -> None:
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.render.cache import RenderCache
     from pbrbench.render.quality import get_quality
-    from pbrbench.tasks import _common as C
     from pbrbench.tasks.base import Job
+    from pbrbench.tasks.common.scenes import family_scenes
     from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -66,7 +66,7 @@ def main(argv=None) -> None:
     algs = [a for a in task.builtin_algorithms() if a.name in wanted]
     src = GroundTruthSource(args.quality, cache=RenderCache(args.cache), scenes=args.scenes)
     if args.scenes is None:
-        family = C.family_scenes
+        family = family_scenes
     else:
         from pbrbench.scene.load import load_library
 

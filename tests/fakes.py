@@ -16,8 +16,9 @@ from pbrbench.report.figures import slug
 from pbrbench.shading.lambert import lambertian_images
 from pbrbench.shading.mondrian import cast_shadow, mondrian_scene
 from pbrbench.shading.surfaces import on_grid
-from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.common.inputs import as_param
+from pbrbench.tasks.common.scoring import ScoreBook
 
 EVIL = "<script>alert('x')</script>"
 HW = 1.05
@@ -106,7 +107,7 @@ class FakeTask(Task):
         gt = gts[job.scene]
         truth = gt["radiance"] if job.condition == "global" else gt["direct"]
         out = JobResult(job)
-        book = C.ScoreBook(job, gt.meta["scene_hash"], algorithms)
+        book = ScoreBook(job, gt.meta["scene_hash"], algorithms)
         ests = {}
         for alg in algorithms:
             est = alg(truth, seed=seed, scene=job.scene, condition=job.condition, quality=quality)
@@ -166,7 +167,7 @@ def ps_gt(surface="sphere", size=40, albedo=0.6, lights=FIVE, gi_gain=1.0):
 def ps_job(cond="local", lights=None, scene="s", **extra):
     lights = FIVE * np.pi if lights is None else lights
     return Job("photometric_stereo", scene, cond,
-               (("lights", C.as_param(lights)), ("half_width", HW)) + tuple(extra.items()))
+               (("lights", as_param(lights)), ("half_width", HW)) + tuple(extra.items()))
 
 
 def mondrian_gt(size=64, colour=False, shadow=False):
@@ -192,7 +193,7 @@ def sfs_gt(size=32, light=(0.7071, 0.0, 0.7071), albedo=0.8):
            "albedo": np.repeat(np.where(s.mask, albedo, 0.0)[..., None], 3, -1).astype(np.float32),
            "depth": np.where(s.mask, 5.0 - s.z, 0.0).astype(np.float32), "mask": s.mask.astype(np.float32)}
     job = Job("sfs", "sfs_sphere", "local",
-              (("light", C.as_param(L)), ("irradiance", np.pi), ("light_index", 0), ("label", "oblique"),
+              (("light", as_param(L)), ("irradiance", np.pi), ("light_index", 0), ("label", "oblique"),
                ("half_width", HW)))
     return GroundTruth(arr, {"scene_hash": "synthetic-sfs", "n_light_set": 1}), job
 

@@ -168,8 +168,8 @@ def test_render_json_has_lights_camera_units_and_loads_back(tmp_path):
     from pbrbench.cli.render import describe_render
     from pbrbench.io import load_render
     from pbrbench.render.groundtruth import GroundTruth
+    from pbrbench.scene.geometry import light_vectors
     from pbrbench.scene.load import resolve
-    from pbrbench.tasks._common import light_vectors
 
     spec = resolve(["sphere_5lights"])[0]
     h, w = 12, 16

@@ -80,7 +80,6 @@ def run(args) -> int:
     st = settings(args)
     from pbrbench.progress import Progress
     from pbrbench.render.cache import RenderCache, ground_truth
-    from pbrbench.render.groundtruth import n_passes
     from pbrbench.scene.load import load_library, resolve
 
     if args.all and args.scenes:
@@ -101,7 +100,7 @@ def run(args) -> int:
     rows = []
     for spec in specs:
         t0 = time.perf_counter()
-        with Progress(n_passes(spec), spec.name, bars=bars, unit="pass", lines=False) as prog:
+        with Progress(spec.n_passes, spec.name, bars=bars, unit="pass", lines=False) as prog:
             gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force,
                                       progress=lambda what, p=prog: p.update(1, what))
         dt = time.perf_counter() - t0

@@ -462,12 +462,6 @@ def noise_summary(arrays: dict, jks: dict, spec) -> dict:
     }
 
 
-def n_passes(spec: S.SceneSpec) -> int:
-    """Progress steps of :func:`render_ground_truth`: radiance, direct, two per light of the light
-    set, the unoccluded and diffuse-only passes where they apply, and the AOVs."""
-    return 3 + 2 * len(spec.light_set) + int(spec.has_occluders) + int(spec.has_glossy)
-
-
 def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant: str | None = None,
                         progress=None) -> GroundTruth:
     """Render every pass of the ground truth of ``spec`` (no cache: see :mod:`.cache`)."""

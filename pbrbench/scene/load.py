@@ -343,12 +343,10 @@ def _check_work(specs: list[S.SceneSpec], path: str) -> None:
     """Refuse renders far beyond the library's (samples = width x height x spp x passes)."""
     if _allow_large():
         return
-    from pbrbench.render.groundtruth import n_passes
-
     total = 0.0
     for s in specs:
         w, h = s.render.resolution
-        passes = n_passes(s)
+        passes = s.n_passes
         n = float(w) * h * s.render.spp * passes
         total += n
         if n > LIMITS["samples_per_scene"]:

@@ -635,6 +635,13 @@ class SceneSpec(Model):
     def has_occluders(self) -> bool:
         return any(s.occluder for s in self.shapes)
 
+    @property
+    def n_passes(self) -> int:
+        """The rendered passes of this scene's ground truth (progress steps and the work limit):
+        radiance, direct, two per light of the light set, the unoccluded and diffuse-only passes
+        where they apply, and the AOVs."""
+        return 3 + 2 * len(self.light_set) + int(self.has_occluders) + int(self.has_glossy)
+
     def shape_names(self) -> list[str]:
         return [s.name or f"shape{i}" for i, s in enumerate(self.shapes)]
 

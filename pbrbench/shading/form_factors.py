@@ -103,7 +103,8 @@ def patch_geometry(vertices) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
 _GAUSS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
 
 
-def _gauss01(k: int) -> tuple[np.ndarray, np.ndarray]:
+def gauss_legendre01(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Gauss-Legendre nodes and weights of order ``k`` on [0, 1] (the weights sum to 1; cached)."""
     if k not in _GAUSS:
         x, w = np.polynomial.legendre.leggauss(k)
         _GAUSS[k] = (0.5 * (x + 1.0), 0.5 * w)
@@ -128,7 +129,7 @@ def patch_quadrature(vertices, n_sub: int = 1, order: int = 1) -> tuple[np.ndarr
     if n_sub == 1 and order == 1:
         c, _, _, _ = patch_geometry(v)
         return c[:, None, :], np.ones((len(v), 1))
-    g, w = _gauss01(order)
+    g, w = gauss_legendre01(order)
     u1 = ((np.arange(n_sub)[:, None] + g[None, :]) / n_sub).ravel()
     w1 = np.tile(w / n_sub, n_sub)
     U, V = (a.ravel() for a in np.meshgrid(u1, u1, indexing="ij"))

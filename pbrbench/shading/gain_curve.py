@@ -133,7 +133,7 @@ def gain_curve(omegas, slants=None) -> np.ndarray:
 
 
 # ------------------------------------------------------------------ a measurement to render
-# (rendered by pbrbench.render.proofs_interreflection.measure_gain_mitsuba: shading never imports Mitsuba)
+# (rendered by pbrbench.render.proofs.gain.measure_gain_mitsuba: shading never imports Mitsuba)
 def gain_measurement_spec(omega: float, slant: float, *, phase: float = 0.0, plane_half_size: float = 30.0,
                           radiance: float = 1.0, modulation: float = 0.5, patch_half_size: float = 0.01,
                           texels: int = 8192) -> dict:

@@ -15,7 +15,8 @@ def task_names() -> list[str]:
     """Names of the task modules of this package, in a fixed order (the chapter's order first)."""
     import pbrbench.tasks as pkg
 
-    found = [m.name for m in pkgutil.iter_modules(pkg.__path__) if not m.name.startswith("_") and m.name != "base"]
+    found = [m.name for m in pkgutil.iter_modules(pkg.__path__)
+             if not m.ispkg and not m.name.startswith("_") and m.name != "base"]
     order = ("photometric_stereo", "lightness", "hdr", "sfs", "specular", "interreflection")
     return sorted(found, key=lambda n: (order.index(n) if n in order else len(order), n))
 

@@ -4,7 +4,7 @@ Each figure's name starts with the chapter figure it reproduces (``Fig 1.18 ...`
 effect the chapter describes without a figure, its section (``§1.3.5 ...``), so the report's
 chapter gallery collects it (:func:`pbrbench.report.html.chapter_gallery`).  The path tracer's
 renders are the chapter's "data"; the models are pbrbench's own: the radiosity solution of
-:mod:`pbrbench.shading.forward_models` (converged, and its local model: zero bounces), the exact
+:mod:`pbrbench.radiosity.forward_models` (converged, and its local model: zero bounces), the exact
 irradiance of a polygonal source partly hidden by a convex occluder
 (:func:`pbrbench.shading.irradiance.visible_polygon_irradiance`) and the gain kernel of
 :mod:`pbrbench.shading.gain_curve`.
@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import JobResult
+from pbrbench.tasks.common.figures import display
+from pbrbench.tasks.common.inputs import grey
+from pbrbench.tasks.common.scenes import sweep_value
 
 __all__ = ["plot_job"]
 
@@ -25,14 +27,14 @@ ROOM_ROW = 0.72
 
 
 def _vis(gt) -> np.ndarray:
-    from pbrbench.tasks.interreflection import visible_surface
+    from pbrbench.tasks.common.inputs import visible_surface
 
     return visible_surface(gt)
 
 
 def _cells(task, quality) -> int:
     """Patches across the view of the task's models at this quality (the last built-in method's)."""
-    from pbrbench.shading.forward_models import DEFAULT_CELLS
+    from pbrbench.radiosity.forward_models import DEFAULT_CELLS
 
     methods = [a for a in task.builtin_algorithms() if a.kind == "method"]
     return int(methods[-1].options_for(quality).get("cells", DEFAULT_CELLS)) if methods else DEFAULT_CELLS
@@ -40,7 +42,7 @@ def _cells(task, quality) -> int:
 
 def _models(spec, shape, cells):
     """(converged radiosity image, local model image) of ``spec`` at ``shape = (H, W)``."""
-    from pbrbench.shading.forward_models import predict_radiance
+    from pbrbench.radiosity.forward_models import predict_radiance
 
     H, W = shape
     return (predict_radiance(spec, (W, H), cells=cells), predict_radiance(spec, (W, H), bounces=0, cells=cells))
@@ -50,18 +52,18 @@ def _display(img, exposure: float) -> np.ndarray:
     """Display-ready sRGB [0, 1] with a given exposure (so two images share one)."""
     from pbrbench.io import srgb_encode
 
-    return np.clip(srgb_encode(C.display(img) * exposure), 0.0, 1.0).astype(np.float32)
+    return np.clip(srgb_encode(display(img) * exposure), 0.0, 1.0).astype(np.float32)
 
 
 def _exposure(img, mask) -> float:
-    g = C.grey(img)[mask]
+    g = grey(img)[mask]
     w = np.percentile(g[g > 0], 99.0) if np.any(g > 0) else 1.0
     return 1.0 / w if w > 0 else 1.0
 
 
 def _columns(a, mask) -> np.ndarray:
     """Mean of each column over the rows where ``mask`` (NaN where none)."""
-    v = C.grey(a)
+    v = grey(a)
     cnt = mask.sum(axis=0)
     with np.errstate(invalid="ignore"):
         return np.where(cnt > 0, np.where(mask, v, 0.0).sum(axis=0) / np.maximum(cnt, 1), np.nan)
@@ -81,18 +83,18 @@ def _series(x, y, color, **style) -> dict:
 # ------------------------------------------------------------------------------ the figures
 def _groove(task, job, gts, quality) -> JobResult:
     from pbrbench.render.quality import subsample
-    from pbrbench.tasks.interreflection import scene_spec
+    from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)
-    names = sorted([job.scene, *job.extra_scenes], key=lambda n: C.sweep_value(n, "albedo") or 0.0)
+    names = sorted([job.scene, *job.extra_scenes], key=lambda n: sweep_value(n, "albedo") or 0.0)
     fam = job.scene.split("[")[0]
     fig, what = GROOVE.get(fam, ("Fig 1.18", fam))
-    shown = subsample([n for n in names if (C.sweep_value(n, "albedo") or 0) > 0] or names, 3)
+    shown = subsample([n for n in names if (sweep_value(n, "albedo") or 0) > 0] or names, 3)
     cells = _cells(task, quality)
     series, local = {}, None
     for k, name in enumerate(shown):
         gt, spec = gts[name], scene_spec(name)
-        rho = float(C.sweep_value(name, "albedo") or np.mean(C.grey(gt["albedo"])[_vis(gt)]))
+        rho = float(sweep_value(name, "albedo") or np.mean(grey(gt["albedo"])[_vis(gt)]))
         H, W = gt['radiance'].shape[:2]
         x = _x(spec, W, H)
         model, loc = _models(spec, (H, W), cells)
@@ -109,7 +111,7 @@ def _groove(task, job, gts, quality) -> JobResult:
         "ylabel": "B / albedo = pi L / albedo (column means)",
         "title": f"{fig}: {what}: path tracer, radiosity (--), local (..)"}
     top = gts[names[-1]]
-    res.images[f"{fig} groove, {what} (albedo {C.sweep_value(names[-1], 'albedo') or 0:g}): path tracer"] = _display(
+    res.images[f"{fig} groove, {what} (albedo {sweep_value(names[-1], 'albedo') or 0:g}): path tracer"] = _display(
         top["radiance"], 0.9 * _exposure(top["radiance"], _vis(top)))
     if fam == "groove_reflex_parallel":
         res.plots["Fig 1.19 gain of interreflection: a patch at unit height above a plane of radiosity sin(omega x)"] = \
@@ -130,7 +132,7 @@ def _gain_plot() -> dict:
 
 
 def _rooms(task, job, gts, quality) -> JobResult:
-    from pbrbench.tasks.interreflection import scene_spec
+    from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)
     names = sorted([job.scene, *job.extra_scenes], key=lambda n: "white" in n)  # black first
@@ -165,7 +167,7 @@ def _rooms(task, job, gts, quality) -> JobResult:
 
 
 def _bump(task, job, gts, quality) -> JobResult:
-    from pbrbench.tasks.interreflection import scene_spec
+    from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)
     gt, spec = gts[job.scene], scene_spec(job.scene)
@@ -196,8 +198,8 @@ def _bump(task, job, gts, quality) -> JobResult:
 
 
 def _bleeding(task, job, gts, quality) -> JobResult:
-    from pbrbench.shading.patches import rotation_matrix
-    from pbrbench.tasks.interreflection import scene_spec
+    from pbrbench.radiosity.patches import rotation_matrix
+    from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)
     gt, spec = gts[job.scene], scene_spec(job.scene)
@@ -241,7 +243,7 @@ def _bleeding(task, job, gts, quality) -> JobResult:
 
 def _shadows(task, job, gts, quality) -> JobResult:
     from pbrbench.shading.irradiance import rectangle_polygon, visible_polygon_irradiance
-    from pbrbench.tasks.interreflection import scene_spec
+    from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)
     frac, rad = {}, {}
@@ -272,7 +274,7 @@ def _shadows(task, job, gts, quality) -> JobResult:
         col = f"C{k}"
         frac[f"{label}: path tracer"] = _series(x, gt["unoccluded_fraction"][row], col, marker="")
         frac[f"{label}: exact"] = _series(x, vis / np.maximum(full, 1e-300), col, linestyle="--", marker="")
-        rad[f"{label}: path tracer"] = _series(x, C.grey(gt["radiance"])[row], col, marker="")
+        rad[f"{label}: path tracer"] = _series(x, grey(gt["radiance"])[row], col, marker="")
         rad[f"{label}: exact (rho E_visible / pi)"] = _series(x, rho * vis / np.pi, col, linestyle="--", marker="")
         fig = "Fig 1.6" if "small" in name else "Fig 1.5"
         res.images[f"{fig} {name}: {label} (path tracer)"] = _display(gt["radiance"], _exposure(gt["radiance"], _vis(gt)))

@@ -133,8 +133,6 @@ class Task:
     def seed_dependent(self, job: Job) -> bool:
         """Whether the job's inputs depend on the seed (then its standard error includes a second
         seed, :mod:`pbrbench.bench.uncertainty`): a noise modifier with a positive level."""
-        from pbrbench.tasks._common import parse_condition
-
         _, mods = parse_condition(job.condition)
         return any(v > 0 for k, v in mods.items() if "noise" in k)
 
@@ -178,3 +176,20 @@ class Task:
         """Score predictions that do not go through the calling convention (e.g. a radiance map
         where the algorithm returns a response curve), or None to score them through run_job."""
         return None
+
+
+def parse_condition(condition: str) -> tuple[str, dict[str, float]]:
+    """``"local+noise0.01"`` -> ``("local", {"noise": 0.01})``; ``"local+3x3stops"`` ->
+    ``("local", {"3x3stops": 1.0})`` (a flag without a number)."""
+    base, *mods = condition.split("+")
+    out: dict[str, float] = {}
+    for m in mods:
+        i = 0
+        while i < len(m) and (m[i].isalpha() or m[i] == "_"):
+            i += 1
+        key, num = m[:i], m[i:]
+        try:
+            out[key or m] = float(num) if num and key else 1.0
+        except ValueError:
+            out[m] = 1.0
+    return base, out

@@ -38,8 +38,19 @@ from pbrbench.camera import Camera, bracket_exposure_times
 from pbrbench.checks import method_options
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Prediction, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map, profile_plot
+from pbrbench.tasks.common.inputs import grey, job_rng
+from pbrbench.tasks.common.scenes import family_scenes
+from pbrbench.tasks.common.scoring import (
+    ScoreBook,
+    Timer,
+    attribute,
+    call,
+    check_array,
+    one_line,
+    scene_hash,
+)
 
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
@@ -49,7 +60,7 @@ CONDITIONS = ("global+noise0", "global+readnoise0.002", "global+3x3stops", "glob
 
 def camera_setup(condition: str, radiance: np.ndarray) -> tuple[Camera, np.ndarray]:
     """The simulated camera and exposure times of a condition (see the module docstring)."""
-    _, mods = C.parse_condition(condition)
+    _, mods = parse_condition(condition)
     read = mods.get("readnoise", 0.0)
     cam = Camera(RESPONSE, bit_depth=BIT_DEPTH, read_noise=read, full_well=1e4 if read > 0 else None)
     if "3x3stops" in mods:
@@ -86,7 +97,7 @@ def true_response(images, exposure_times, *, truth):
 
 
 def _check_response(out, channels: int):
-    inv = C.attribute(out, "inverse")
+    inv = attribute(out, "inverse")
     if inv is None:
         raise ValueError("output: return a CameraResponse (or anything with an `inverse` (levels, channels) array)")
     inv = np.asarray(inv, float)
@@ -149,14 +160,14 @@ class HDRTask(Task):
             return None
         gt = gts[job.scene]
         rad, mask, _, domain, coverage = self._bracket(job, gt, seed)
-        book = C.ScoreBook(job, C.scene_hash(gt), [algorithm])
+        book = ScoreBook(job, scene_hash(gt), [algorithm])
         res = JobResult(job)
         try:
-            est = C.check_array(files["radiance"], "radiance", rad.shape, where=mask)
+            est = check_array(files["radiance"], "radiance", rad.shape, where=mask)
             sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
         except ValueError as e:
             book.add(algorithm.name, {"failed": 1.0}, 0.0)
-            res.failures[algorithm.name] = C.one_line(e)
+            res.failures[algorithm.name] = one_line(e)
         else:
             book.add(algorithm.name, dict(sc, bracket_coverage=coverage), 0.0)
         res.scores = book.scores
@@ -165,7 +176,7 @@ class HDRTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, ()):
-            for s in C.family_scenes(fam):
+            for s in family_scenes(fam):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
@@ -176,7 +187,7 @@ class HDRTask(Task):
         rad = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
         mask = np.all(rad > 0, axis=-1)
         cam, times = camera_setup(job.condition, rad[mask])
-        cap_seed = int(C.job_rng(job, seed).integers(0, 2 ** 31 - 1))
+        cap_seed = int(job_rng(job, seed).integers(0, 2 ** 31 - 1))
         br = cam.capture(rad, times, seed=cap_seed)
         top = br.levels - 1
         measured = np.all(np.any((br.images > 0) & (br.images < top), axis=0), axis=-1)
@@ -190,12 +201,12 @@ class HDRTask(Task):
         gt = gts[job.scene]
         rad, mask, br, domain, coverage = self._bracket(job, gt, seed)
         times = br.exposure_times
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
-        res.images["linear:truth (radiance)"] = C.display(rad)
+        res.images["linear:truth (radiance)"] = display(rad)
         k_mid = len(times) // 2
-        res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = C.display(br.images[k_mid].astype(float) / (br.levels - 1))
-        res.images["pixels no exposure measures (white)"] = C.display((mask & ~domain).astype(float))
+        res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = display(br.images[k_mid].astype(float) / (br.levels - 1))
+        res.images["pixels no exposure measures (white)"] = display((mask & ~domain).astype(float))
         levels = np.arange(br.levels)
         curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
         shown = set()
@@ -203,15 +214,15 @@ class HDRTask(Task):
             kw = {"truth": br} if alg.kind == "floor" else {}
             if "seed" in method_options(alg.fn) and "seed" not in alg.options:
                 kw["seed"] = seed
-            with C.Timer() as t:
-                resp, _, err = C.call(alg, br.images, br.exposure_times, quality=quality,
+            with Timer() as t:
+                resp, _, err = call(alg, br.images, br.exposure_times, quality=quality,
                                       check=lambda o: _check_response(o, rad.shape[-1]), **kw)
                 if err is None:
                     tt = resp.exposure_times if getattr(resp, "exposure_times", None) is not None else br.exposure_times
                     try:
                         est = merge_hdr(br.images, tt, resp)
                     except Exception as e:  # noqa: BLE001 - an unusable response is the algorithm's failure
-                        err = C.one_line(e)
+                        err = one_line(e)
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, t.seconds)
                 res.failures[alg.name] = err
@@ -225,12 +236,12 @@ class HDRTask(Task):
             if alg.kind in ("method", "baseline") and alg.kind not in shown:  # the first of each
                 shown.add(alg.kind)
                 dom = domain if domain.any() else mask
-                res.images[f"linear:merged: {alg.name}"] = C.display(est / np.exp(np.mean(np.log(est[dom] / rad[dom]))))
+                res.images[f"linear:merged: {alg.name}"] = display(est / np.exp(np.mean(np.log(est[dom] / rad[dom]))))
                 with np.errstate(divide="ignore", invalid="ignore"):
-                    lr = np.log2(C.grey(est) / C.grey(rad))
+                    lr = np.log2(grey(est) / grey(rad))
                 lr = np.where(dom, lr - np.nanmedian(lr[dom]), np.nan)
-                res.error_maps[f"log2 radiance error (stops): {alg.name}"] = C.display_map(lr)
-        res.plots["inverse response (green channel)"] = C.profile_plot(
+                res.error_maps[f"log2 radiance error (stops): {alg.name}"] = display_map(lr)
+        res.plots["inverse response (green channel)"] = profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",
             note="gauge: f^-1(top level) = 1 for every curve")
         res.scores = book.scores

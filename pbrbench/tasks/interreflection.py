@@ -8,14 +8,14 @@ scene's :class:`~pbrbench.scene.spec.SceneSpec` and returns the radiance it pred
 (H, W, 3) (or (H, W)): the built-ins are the local shading model (``local``, a baseline: the direct
 light of every source with shadows, no interreflection) and the radiosity model after 1, 2 and 4
 bounces and converged (``radiosity:1``, ``radiosity:2``, ``radiosity:4``, ``radiosity``), all from
-one memoised solution per scene (:mod:`pbrbench.shading.forward_models`; ``cells`` patches across
+one memoised solution per scene (:mod:`pbrbench.radiosity.forward_models`; ``cells`` patches across
 the view: 16, 8 in a draft run).
 
 Conditions: ``global`` -- the prediction against the path tracer's full radiance (the reference
 condition: what a camera sees); ``local`` -- against its direct light alone (where the local model
 is right by construction: its error there is the models' own discretisation, and the radiosity
 models' excess is the interreflected light they add).  Scores
-(:mod:`pbrbench.metrics.interreflection`) over the visible surface (:func:`visible_surface`): ``radiosity_rel_error`` (the headline), ``radiosity_rel_rmse``, ``radiosity_abs_bias``
+(:mod:`pbrbench.metrics.interreflection`) over the visible surface (:func:`pbrbench.tasks.common.inputs.visible_surface`): ``radiosity_rel_error`` (the headline), ``radiosity_rel_rmse``, ``radiosity_abs_bias``
 and ``chromaticity_error``.
 
 Plot jobs (figures, no scores) reproduce the chapter's figures for the report's gallery: Figs
@@ -30,43 +30,18 @@ import numpy as np
 
 from pbrbench.metrics.interreflection import radiosity_scores
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
 from pbrbench.tasks import _interreflection_figures as FIG
-from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.base import Job, JobResult, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map
+from pbrbench.tasks.common.inputs import grey, visible_surface
+from pbrbench.tasks.common.scenes import family_scenes, scene_spec, sweep_value
+from pbrbench.tasks.common.scoring import ScoreBook, call, check_array, scene_hash
 
 GROOVES = ("groove_reflex_parallel", "groove_reflex_bisector")
 FAMILIES = GROOVES + ("room_black", "room_white", "cylinder_bump", "ps_cap", "colour_bleeding")
 SHADOWS = ("shadow_near", "shadow_far", "shadow_small")
 CONDITIONS = ("global", "local")
 
-_SPECS: dict = {}
-
-
-def scene_spec(name: str):
-    """The SceneSpec of a library scene by name (``family[key=value]``), cached per process."""
-    if name not in _SPECS:
-        fam = name.split("[")[0]
-        found = {s.name: s for s in C.family_scenes(fam)}
-        if name not in found:
-            raise ValueError(f"scene {name!r}: not in the library family {fam!r}")
-        _SPECS.update(found)
-    return _SPECS[name]
-
-
-def visible_surface(gt) -> np.ndarray:
-    """The evaluation domain: pixels wholly covered by one object (coverage 1, the same object id
-    as their four neighbours, not an emitter or the background).  The ground truth's ``mask`` adds
-    that the footprint-averaged shape index equal the point-sampled one, which leaves out whole
-    objects of some scenes (in the rooms the back wall and the boxes); the radiance of a pixel
-    inside one object's outline is a clean comparison whatever that test says."""
-    obj = np.asarray(gt["object_id"]).astype(int) if "object_id" in gt else None
-    if obj is None or "coverage" not in gt:
-        return gt.mask
-    pad = np.pad(obj, 1, mode="edge")
-    same = np.ones(obj.shape, bool)
-    for di, dj in ((0, 1), (2, 1), (1, 0), (1, 2)):
-        same &= pad[di:di + obj.shape[0], dj:dj + obj.shape[1]] == obj
-    return (np.asarray(gt["coverage"]) > 0.999) & same & (obj > 0)
 
 
 def as_radiance(out, shape) -> np.ndarray:
@@ -75,7 +50,7 @@ def as_radiance(out, shape) -> np.ndarray:
     a = np.asarray(out, dtype=float) if out is not None else None
     if a is not None and a.shape == (h, w):
         a = np.repeat(a[..., None], 3, axis=2)
-    return C.check_array(a, "radiance", (h, w, 3))
+    return check_array(a, "radiance", (h, w, 3))
 
 
 class InterreflectionTask(Task):
@@ -104,7 +79,7 @@ class InterreflectionTask(Task):
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:
-        from pbrbench.shading.forward_models import MODELS
+        from pbrbench.radiosity.forward_models import MODELS
 
         out = [Algorithm("local", self.name, MODELS["local"], kind="baseline",
                          description="the local shading model: direct light with shadows, no interreflection")]
@@ -119,7 +94,7 @@ class InterreflectionTask(Task):
         kept = {}
         for fam in quality.pick(self.families, self.short_families):
             # a black scene (albedo 0 of a sweep) reflects nothing: no relative error to score
-            specs = quality.keep([s for s in C.family_scenes(fam) if C.sweep_value(s, "albedo") != 0.0])
+            specs = quality.keep([s for s in family_scenes(fam) if sweep_value(s, "albedo") != 0.0])
             kept[fam] = [s.name for s in specs]
             for s in specs:
                 out += [Job(self.name, s.name, c) for c in self.conditions]
@@ -134,7 +109,7 @@ class InterreflectionTask(Task):
             out.append(Job(self.name, kept["cylinder_bump"][0], "global", (("plot", "bump"),)))
         if kept.get("colour_bleeding"):
             out.append(Job(self.name, kept["colour_bleeding"][0], "global", (("plot", "bleeding"),)))
-        shadows = [s.name for fam in SHADOWS for s in C.family_scenes(fam)[:1]]
+        shadows = [s.name for fam in SHADOWS for s in family_scenes(fam)[:1]]
         if shadows:
             out.append(Job(self.name, shadows[0], "global", (("plot", "shadows"),), extra_scenes=tuple(shadows[1:])))
         return out
@@ -147,18 +122,18 @@ class InterreflectionTask(Task):
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
         spec = scene_spec(job.scene)
-        base, _ = C.parse_condition(job.condition)
+        base, _ = parse_condition(job.condition)
         H, W = gt["radiance"].shape[:2]
         ref = np.asarray(gt["radiance"] if base == "global" else gt["direct"], np.float64)
         domain = visible_surface(gt)
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
         figures = base == "global" and gt.meta.get("replicate") is None  # not again on the delete-one-group replicates
         if figures:
-            res.images[f"linear:path tracer ({base})"] = C.display(ref)
+            res.images[f"linear:path tracer ({base})"] = display(ref)
         shown = {}   # figures: the first baseline and the last method (the converged model among the built-ins)
         for alg in algorithms:
-            out, seconds, err = C.call(alg, spec, (W, H), quality=quality, check=lambda o: as_radiance(o, (H, W)))
+            out, seconds, err = call(alg, spec, (W, H), quality=quality, check=lambda o: as_radiance(o, (H, W)))
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
@@ -170,10 +145,10 @@ class InterreflectionTask(Task):
             for kind in ("baseline", "method"):
                 if kind in shown:
                     name, out = shown[kind]
-                    res.images[f"linear:{name}"] = C.display(out)
+                    res.images[f"linear:{name}"] = display(out)
                     with np.errstate(invalid="ignore", divide="ignore"):
-                        rel = C.grey(out) / C.grey(ref) - 1.0
-                    res.error_maps[f"relative error: {name}"] = C.display_map(np.where(domain, rel, np.nan), domain)
+                        rel = grey(out) / grey(ref) - 1.0
+                    res.error_maps[f"relative error: {name}"] = display_map(np.where(domain, rel, np.nan), domain)
         res.scores = book.scores
         return res
 

@@ -33,8 +33,11 @@ import numpy as np
 
 from pbrbench.metrics.lightness import lightness_scores
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Prediction, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map, profile_plot
+from pbrbench.tasks.common.inputs import grey
+from pbrbench.tasks.common.scenes import family_scenes
+from pbrbench.tasks.common.scoring import ScoreBook, attribute, call, check_array, scene_hash
 
 FAMILIES = ("mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded")
 MEAN_LIGHTNESS = 0.5   # the mean of the library's papers, drawn uniformly in [0.1, 0.9]
@@ -130,8 +133,8 @@ class LightnessTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            twins = C.family_scenes(f"{fam}_area")
-            for i, s in enumerate(C.family_scenes(fam)):
+            twins = family_scenes(f"{fam}_area")
+            for i, s in enumerate(family_scenes(fam)):
                 paper = tuple(i + 1 for i, sh in enumerate(s.shapes) if sh.material == "paper")
                 p = (("paper_ids", paper),)
                 out.append(Job(self.name, s.name, "local", p))
@@ -145,7 +148,7 @@ class LightnessTask(Task):
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        base, _ = C.parse_condition(job.condition)
+        base, _ = parse_condition(job.condition)
         img = np.asarray(gt["radiance" if base == "global" else "direct"], float)
         alb = np.asarray(gt["albedo"], float)
         ids = tuple(job.param("paper_ids", ()) or ())
@@ -154,17 +157,17 @@ class LightnessTask(Task):
             mask &= np.isin(np.rint(gt["object_id"]), ids)
         colour = float(np.ptp(alb[mask], axis=-1).max()) > 1e-3 if mask.any() else False
         if not colour:
-            img, alb = C.grey(img), C.grey(alb)
+            img, alb = grey(img), grey(alb)
         m = mask if img.ndim == 2 else mask[..., None]
         shad_true = np.where(m, img / np.where(m, alb, 1.0), 0.0)
         alb = np.where(m, alb, 0.0)
         img = np.where(m, img, 0.0)
         labels = patch_labels(alb, mask)
         win = int(min(20, max(4, min(img.shape[:2]) // 4)))
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
-        res.images["linear:input"] = C.display(img)
-        res.images["reflectance: truth"] = C.display(np.clip(alb, 0, 1))
+        res.images["linear:input"] = display(img)
+        res.images["reflectance: truth"] = display(np.clip(alb, 0, 1))
         row = shadow_row(gt, mask)
         cols = np.flatnonzero(mask[row])
         prof = {"image / max": img[row] / max(float(img[row][mask[row]].max()), 1e-30) if cols.size else img[row],
@@ -173,15 +176,15 @@ class LightnessTask(Task):
         inside = np.broadcast_to(m, img.shape)
 
         def check(out):
-            refl, shad = C.attribute(out, "reflectance", 0), C.attribute(out, "shading", 1)
+            refl, shad = attribute(out, "reflectance", 0), attribute(out, "shading", 1)
             if refl is None or shad is None:
                 raise ValueError("output: return (reflectance, shading) of the image's shape")
-            return (C.check_array(refl, "reflectance", img.shape, where=inside),
-                    C.check_array(shad, "shading", img.shape, where=inside))
+            return (check_array(refl, "reflectance", img.shape, where=inside),
+                    check_array(shad, "shading", img.shape, where=inside))
 
         first = True
         for alg in algorithms:
-            out, seconds, err = C.call(alg, img, mask=mask, quality=quality, check=check)
+            out, seconds, err = call(alg, img, mask=mask, quality=quality, check=check)
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
@@ -190,14 +193,14 @@ class LightnessTask(Task):
             sc = lightness_scores(refl, shad, alb, shad_true, mask=mask, labels=labels, window=win)
             book.add(alg.name, sc, seconds)
             if alg.figures:
-                res.images[f"reflectance: {alg.name}"] = C.display(np.clip(refl, 0, 1))
+                res.images[f"reflectance: {alg.name}"] = display(np.clip(refl, 0, 1))
             if first and alg.kind == "method":
                 first = False
-                g_est, g_true = C.grey(refl), C.grey(alb)
+                g_est, g_true = grey(refl), grey(alb)
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lr = np.where(mask, np.log2(g_est / g_true), np.nan)
                 lr -= np.nanmedian(lr)
-                res.error_maps[f"log2 reflectance error (median removed): {alg.name}"] = C.display_map(lr)
+                res.error_maps[f"log2 reflectance error (median removed): {alg.name}"] = display_map(lr)
                 prof[f"reflectance: {alg.name}"] = refl[row]
         if cols.size > 1:
             from pbrbench.infer.lightness import retinex_1d
@@ -210,7 +213,7 @@ class LightnessTask(Task):
             if "unoccluded_fraction" in gt:
                 prof["unoccluded fraction"] = gt["unoccluded_fraction"][row]
             series = {k: np.asarray(v, float).mean(axis=-1) if np.ndim(v) == 2 else v for k, v in prof.items()}
-            res.plots[f"profile along row {row}"] = C.profile_plot(
+            res.plots[f"profile along row {row}"] = profile_plot(
                 np.arange(img.shape[1]), series, "column (pixels)", "value (grey)",
                 note="row crossing the cast shadow" if "unoccluded_fraction" in gt else "middle row")
         res.scores = book.scores

@@ -38,7 +38,7 @@ normals integrated by ``lsq`` on the largest connected part of the domain).
 For ``sphere_5lights`` under ``local`` the first method's job also draws the chapter's Figs
 1.13-1.16 (the input images, the recovered albedo and normals, a shaded view of the integrated
 height: :func:`chapter_figures`) for the report's chapter gallery.  ``ps_cap`` (a concave spherical
-cap) has a closed-form interreflection bias: :mod:`pbrbench.shading.concave_cap`.
+cap) has a closed-form interreflection bias: :mod:`pbrbench.radiosity.concave_cap`.
 
 Plot jobs (no scores): ``albedo_sweep`` per swept family (error vs albedo, direct vs global
 renders: the concave cup and groove show the interreflection bias, the convex shapes are the
@@ -52,8 +52,12 @@ import numpy as np
 
 from pbrbench.metrics.normals import albedo_scores, height_scores, normal_scores
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Prediction, Task
+from pbrbench.scene.geometry import light_vectors
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map, normals_display, profile_plot
+from pbrbench.tasks.common.inputs import add_noise, as_param, erode, grey, job_rng, pixel_size
+from pbrbench.tasks.common.scenes import family_scenes, sweep_value
+from pbrbench.tasks.common.scoring import ScoreBook, Timer, attribute, call, check_array, scene_hash
 
 FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove",
             "ps_cap")
@@ -74,20 +78,20 @@ def result_arrays(out, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     returned; ``ValueError`` naming the problem when it is unusable.  Normals are renormalised;
     ``valid`` defaults to the pixels with a finite non-zero normal."""
     h, w = shape
-    n = C.attribute(out, "normals", 0)
-    a = C.attribute(out, "albedo", 1)
+    n = attribute(out, "normals", 0)
+    a = attribute(out, "albedo", 1)
     if n is None or a is None:
         raise ValueError("output: return normals (H, W, 3) and albedo (H, W) "
                          "(a PhotometricStereoResult, a dict or a tuple)")
-    valid = C.attribute(out, "valid", 2)
+    valid = attribute(out, "valid", 2)
     if valid is not None:
         valid = np.asarray(valid)
         if valid.shape != (h, w):
             raise ValueError(f"valid: returned shape {valid.shape}, expected {(h, w)}")
         valid = valid.astype(bool)
-    n = C.check_array(n, "normals", (h, w, 3), where=valid)
+    n = check_array(n, "normals", (h, w, 3), where=valid)
     a = np.asarray(a)
-    a = C.check_array(a[..., 0] if a.ndim == 3 and a.shape[2] == 1 else a, "albedo", (h, w), where=valid)
+    a = check_array(a[..., 0] if a.ndim == 3 and a.shape[2] == 1 else a, "albedo", (h, w), where=valid)
     finite = np.isfinite(n).all(axis=-1)
     norm = np.linalg.norm(np.where(finite[..., None], n, 0.0), axis=-1)
     valid = (finite if valid is None else valid) & (norm > 0)
@@ -124,9 +128,9 @@ def chapter_figures(scene: str, method: str, images, normals, albedo, valid, hei
     shaded = np.where(np.isfinite(z), np.clip(nrm @ light, 0.0, 1.0), 0.0)
     tag = f"{scene}, {method}"
     return {f"Fig 1.13 photometric stereo ({tag}): the {k} input images": tiles.astype(np.float32),
-            f"Fig 1.14 recovered albedo x pi ({tag})": C.display(np.where(valid, np.clip(np.pi * albedo, 0, 1), 0.0)),
-            f"Fig 1.15 recovered normals ({tag})": C.normals_display(normals, valid),
-            f"Fig 1.16 height integrated from the recovered normals, shaded ({tag})": C.display(shaded)}
+            f"Fig 1.14 recovered albedo x pi ({tag})": display(np.where(valid, np.clip(np.pi * albedo, 0, 1), 0.0)),
+            f"Fig 1.15 recovered normals ({tag})": normals_display(normals, valid),
+            f"Fig 1.16 height integrated from the recovered normals, shaded ({tag})": display(shaded)}
 
 
 class PhotometricStereoTask(Task):
@@ -164,15 +168,15 @@ class PhotometricStereoTask(Task):
 
     # ------------------------------------------------------------------------------ jobs
     def _params(self, spec) -> tuple:
-        return (("lights", C.as_param(C.light_vectors(spec))), ("half_width", float(spec.camera.half_width)))
+        return (("lights", as_param(light_vectors(spec))), ("half_width", float(spec.camera.half_width)))
 
     def jobs(self, quality) -> list[Job]:
         out: list[Job] = []
         for fam in quality.pick(self.families, self.short_families):
-            specs = C.family_scenes(fam)
+            specs = family_scenes(fam)
             if not specs:
                 continue
-            twins = {C.sweep_value(s, "albedo"): s for s in C.family_scenes(f"{fam}_area")}
+            twins = {sweep_value(s, "albedo"): s for s in family_scenes(f"{fam}_area")}
             specs = quality.keep(specs)
             for s in specs:
                 if not s.light_set:
@@ -181,7 +185,7 @@ class PhotometricStereoTask(Task):
                 out.append(Job(self.name, s.name, "local", p))
                 out.append(Job(self.name, s.name, f"local+noise{NOISE:g}", p))
                 out.append(Job(self.name, s.name, "global", p))
-                tw = twins.get(C.sweep_value(s, "albedo"))
+                tw = twins.get(sweep_value(s, "albedo"))
                 if tw is not None and tw.light_set:
                     out.append(Job(self.name, tw.name, "area", self._params(tw)))
             if len(specs) > 1:  # a swept family: error vs albedo (convex shapes are the control)
@@ -189,7 +193,7 @@ class PhotometricStereoTask(Task):
                 out.append(Job(self.name, names[-1], "global", (("plot", "albedo_sweep"),) + self._params(specs[-1]),
                                extra_scenes=names[:-1]))
         for fam in quality.pick(self.reflex_families, self.short_reflex_families):
-            specs = quality.keep(C.family_scenes(fam), extra=1)
+            specs = quality.keep(family_scenes(fam), extra=1)
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
@@ -211,7 +215,7 @@ class PhotometricStereoTask(Task):
     # --------------------------------------------------------------------------- helpers
     @staticmethod
     def _stack(gt, kind: str) -> np.ndarray:
-        return C.grey(gt.light_stack(kind))
+        return grey(gt.light_stack(kind))
 
     @staticmethod
     def _domain(gt, lights) -> np.ndarray:
@@ -219,9 +223,9 @@ class PhotometricStereoTask(Task):
         directions (not all coplanar), where light k lights a pixel when its direct shading
         ``direct_k / albedo`` exceeds ``LIT`` (5 %) of that light's peak shading
         (cos(theta) > ~0.05: grazing and shadowed measurements out)."""
-        direct = C.grey(gt.light_stack("direct"))
-        alb = C.grey(gt["albedo"])
-        m = C.erode(gt.mask, 1)
+        direct = grey(gt.light_stack("direct"))
+        alb = grey(gt["albedo"])
+        m = erode(gt.mask, 1)
         shading = np.where(m & (alb > 0), direct / np.where(alb > 0, alb, 1.0), 0.0)
         peak = shading.reshape(shading.shape[0], -1).max(axis=1)
         lit = (shading > LIT * np.maximum(peak, 1e-30)[:, None, None]).astype(float)
@@ -234,7 +238,7 @@ class PhotometricStereoTask(Task):
 
     @staticmethod
     def _solve(alg, images, lights, mask, quality):
-        return C.call(alg, images, lights, mask=mask, quality=quality,
+        return call(alg, images, lights, mask=mask, quality=quality,
                       check=lambda out: result_arrays(out, images.shape[1:3]))
 
     @staticmethod
@@ -252,37 +256,37 @@ class PhotometricStereoTask(Task):
             return False
         if job.condition not in quality.pick(INVERSE_CONDITIONS, SHORT_INVERSE_CONDITIONS):
             return False
-        albedos = [C.sweep_value(s, "albedo") for s in C.family_scenes(fam)]
+        albedos = [sweep_value(s, "albedo") for s in family_scenes(fam)]
         albedos = [a for a in albedos if a is not None]
-        return not albedos or C.sweep_value(job.scene, "albedo") == max(albedos)
+        return not albedos or sweep_value(job.scene, "albedo") == max(albedos)
 
     @staticmethod
     def _solve_scene(alg, job: Job, images, lights, mask, quality, seed: int):
         """Call an ``interface="scene"`` algorithm: ``(((normals, albedo, valid), raw output),
         seconds, error)``."""
-        from pbrbench.tasks.interreflection import scene_spec
+        from pbrbench.tasks.common.scenes import scene_spec
 
         spec = scene_spec(job.scene)
-        depth = int(spec.render.max_depth) if C.parse_condition(job.condition)[0] == "global" else 2
-        return C.call(alg, images, lights, mask=mask, scene=spec, max_depth=depth, seed=seed, quality=quality,
+        depth = int(spec.render.max_depth) if parse_condition(job.condition)[0] == "global" else 2
+        return call(alg, images, lights, mask=mask, scene=spec, max_depth=depth, seed=seed, quality=quality,
                       check=lambda out: (result_arrays(out, images.shape[1:3]), out))
 
     @staticmethod
     def _inverse_figures(res: JobResult, name: str, raw, n_true, domain, valid) -> None:
         """The loss curve and the angular error of the start beside the final one."""
-        loss = C.attribute(raw, "loss")
+        loss = attribute(raw, "loss")
         if loss is not None and len(loss):
-            level = C.attribute(raw, "level")
+            level = attribute(raw, "level")
             note = f"coarse-to-fine levels (film downsampling) {list(dict.fromkeys(np.asarray(level).tolist()))}" \
                 if level is not None else ""
-            res.plots[f"{name}: loss per iteration"] = C.profile_plot(
+            res.plots[f"{name}: loss per iteration"] = profile_plot(
                 np.arange(len(loss)), {"objective E": np.asarray(loss, float)}, "iteration", "objective E", note=note)
-        n0 = C.attribute(raw, "initial_normals")
+        n0 = attribute(raw, "initial_normals")
         if n0 is not None:
             n0 = np.asarray(n0, float)
             ok = valid & (np.linalg.norm(n0, axis=-1) > 0)
             _, emap0 = normal_scores(np.where(ok[..., None], n0, 0.0), n_true, domain, ok)
-            res.error_maps[f"angular error (deg): {name}, its start (Woodham)"] = C.display_map(emap0)
+            res.error_maps[f"angular error (deg): {name}, its start (Woodham)"] = display_map(emap0)
 
     # ----------------------------------------------------------------------------- run
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
@@ -293,28 +297,28 @@ class PhotometricStereoTask(Task):
         if plot == "reflex":
             return self._reflex(job, gts)
         gt = gts[job.scene]
-        base, mods = C.parse_condition(job.condition)
+        base, mods = parse_condition(job.condition)
         lights = np.asarray(job.param("lights"), float)
         images = self._stack(gt, "radiance" if base == "global" else "direct")
         if mods.get("noise", 0) > 0:
-            images = C.add_noise(images, mods["noise"], C.job_rng(job, seed))
+            images = add_noise(images, mods["noise"], job_rng(job, seed))
         domain = self._domain(gt, lights)
         n_true = gt["normals"].astype(float)
-        alb_true = C.grey(gt["albedo"])
+        alb_true = grey(gt["albedo"])
         z_true = -gt["depth"].astype(float)
-        px = C.pixel_size(job.param("half_width", 1.0), images.shape[2])
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
+        px = pixel_size(job.param("half_width", 1.0), images.shape[2])
+        book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
-        res.images["linear:input (light 0)"] = C.display(images[0])
-        res.images["normals: truth"] = C.normals_display(n_true, gt.mask)
+        res.images["linear:input (light 0)"] = display(images[0])
+        res.images["normals: truth"] = normals_display(n_true, gt.mask)
         first = True
         for alg in algorithms:
             if alg.kind == "floor":
-                with C.Timer() as t:
+                with Timer() as t:
                     hs, z = height_scores(n_true, z_true, domain, px, integrate=lambda *a, _f=alg, **k: _f(*a, **k))
                 book.add(alg.name, hs, t.seconds)
                 if "true height" not in " ".join(res.error_maps):
-                    res.error_maps[f"true height ({alg.name} of the true normals)"] = C.display_map(z)
+                    res.error_maps[f"true height ({alg.name} of the true normals)"] = display_map(z)
                 continue
             raw = None
             if alg.interface == "scene":
@@ -335,16 +339,16 @@ class PhotometricStereoTask(Task):
             hs, z_est = height_scores(n, z_true, domain & valid, px)
             sc.update(hs)
             book.add(alg.name, sc, seconds)
-            res.images[f"normals: {alg.name}"] = C.normals_display(n, valid)
-            res.error_maps[f"angular error (deg): {alg.name}"] = C.display_map(emap)
+            res.images[f"normals: {alg.name}"] = normals_display(n, valid)
+            res.error_maps[f"angular error (deg): {alg.name}"] = display_map(emap)
             if raw is not None:
                 self._inverse_figures(res, alg.name, raw, n_true, domain, valid)
             if first and alg.kind == "method":
                 first = False
-                res.images[f"albedo x pi: {alg.name}"] = C.display(np.clip(np.pi * a, 0, 1))
+                res.images[f"albedo x pi: {alg.name}"] = display(np.clip(np.pi * a, 0, 1))
                 with np.errstate(invalid="ignore", divide="ignore"):
                     rel = np.where(domain & valid, np.pi * a / np.maximum(alb_true, 1e-6) - 1, np.nan)
-                res.error_maps[f"albedo relative error: {alg.name}"] = C.display_map(rel)
+                res.error_maps[f"albedo relative error: {alg.name}"] = display_map(rel)
                 if job.scene.split("[")[0] == GALLERY_FAMILY and job.condition == "local":
                     res.images.update(chapter_figures(job.scene, alg.name, images, n, a, valid, z_est, px))
         res.scores = book.scores
@@ -353,7 +357,7 @@ class PhotometricStereoTask(Task):
     # ---------------------------------------------------------------------------- plots
     def _albedo_sweep(self, job: Job, gts: dict, algorithms, quality) -> JobResult:
         names = list(job.extra_scenes) + [job.scene]
-        names.sort(key=lambda s: C.sweep_value(s, "albedo") or 0.0)
+        names.sort(key=lambda s: sweep_value(s, "albedo") or 0.0)
         lights = np.asarray(job.param("lights"), float)
         alg = next((a for a in algorithms if a.kind == "method"), None)
         res = JobResult(job)
@@ -362,7 +366,7 @@ class PhotometricStereoTask(Task):
         xs, series = [], {}
         for name in names:
             gt = gts[name]
-            xs.append(C.sweep_value(name, "albedo"))
+            xs.append(sweep_value(name, "albedo"))
             domain = self._domain(gt, lights)
             for kind, label in (("direct", "direct (local)"), ("radiance", "full GI (global)")):
                 out, _, err = self._solve(alg, self._stack(gt, kind), lights, gt.mask, quality)
@@ -370,13 +374,13 @@ class PhotometricStereoTask(Task):
                 if err is None:
                     n, a, valid = out
                     sc, _ = normal_scores(n, gt["normals"], domain, valid)
-                    al = albedo_scores(np.pi * a, C.grey(gt["albedo"]), domain & valid)
+                    al = albedo_scores(np.pi * a, grey(gt["albedo"]), domain & valid)
                 series.setdefault(f"angular error, {label}", []).append(sc.get("normal_mean_deg", np.nan))
                 series.setdefault(f"albedo rel. error, {label}", []).append(al.get("albedo_rel_err", np.nan))
         fam = job.scene.split("[")[0]
-        res.plots[f"{fam}: {alg.name} error vs albedo"] = C.profile_plot(
+        res.plots[f"{fam}: {alg.name} error vs albedo"] = profile_plot(
             xs, {k: v for k, v in series.items() if k.startswith("angular")}, "albedo", "mean angular error (deg)")
-        res.plots[f"{fam}: {alg.name} albedo error vs albedo"] = C.profile_plot(
+        res.plots[f"{fam}: {alg.name} albedo error vs albedo"] = profile_plot(
             xs, {k: v for k, v in series.items() if k.startswith("albedo")}, "albedo",
             "mean |albedo_est / albedo - 1|")
         return res
@@ -385,16 +389,16 @@ class PhotometricStereoTask(Task):
         """Radiosity ``B = pi L`` across the groove (middle row, along x) for each albedo, and
         ``B / albedo`` (the total irradiance) against the local model's (direct) one."""
         names = list(job.extra_scenes) + [job.scene]
-        names.sort(key=lambda s: C.sweep_value(s, "albedo") or 0.0)
+        names.sort(key=lambda s: sweep_value(s, "albedo") or 0.0)
         radiosity, gain = {}, {}
         x = None
         for name in names:
             gt = gts[name]
             row = gt["radiance"].shape[0] // 2
-            rad, dire = C.grey(gt["radiance"])[row], C.grey(gt["direct"])[row]
+            rad, dire = grey(gt["radiance"])[row], grey(gt["direct"])[row]
             x = np.arange(rad.size) if x is None else x
-            alb = C.sweep_value(name, "albedo")
-            alb = float(alb) if alb is not None else float(np.median(C.grey(gt["albedo"])[row]))
+            alb = sweep_value(name, "albedo")
+            alb = float(alb) if alb is not None else float(np.median(grey(gt["albedo"])[row]))
             radiosity[f"albedo {alb:g}"] = np.pi * rad
             if alb > 0:
                 gain[f"albedo {alb:g}, global"] = np.pi * rad / alb
@@ -402,13 +406,13 @@ class PhotometricStereoTask(Task):
                     gain["local model (direct)"] = np.pi * dire / alb
         res = JobResult(job)
         fam = job.scene.split("[")[0]
-        res.plots[f"{fam}: radiosity across the groove vs albedo"] = C.profile_plot(
+        res.plots[f"{fam}: radiosity across the groove vs albedo"] = profile_plot(
             x, radiosity, "column (pixels)", "radiosity B = pi L (middle row)")
         if gain:
-            res.plots[f"{fam}: B / albedo (total irradiance) vs the local model"] = C.profile_plot(
+            res.plots[f"{fam}: B / albedo (total irradiance) vs the local model"] = profile_plot(
                 x, gain, "column (pixels)", "B / albedo (middle row)",
                 note="the local model predicts the direct curve for every albedo; interreflection adds a roof that grows with albedo")
-        res.images["linear:radiance (highest albedo)"] = C.display(gts[names[-1]]["radiance"])
+        res.images["linear:radiance (highest albedo)"] = display(gts[names[-1]]["radiance"])
         return res
 
 

@@ -40,8 +40,12 @@ import numpy as np
 
 from pbrbench.metrics.sfs import flat_baseline, floor_scores, sfs_scores
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Prediction, Task
+from pbrbench.scene.geometry import nominal_light
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map, normals_display, profile_plot
+from pbrbench.tasks.common.inputs import add_noise, as_param, grey, job_rng, pixel_size
+from pbrbench.tasks.common.scenes import family_scenes
+from pbrbench.tasks.common.scoring import ScoreBook, Timer, attribute, call, check_array, scene_hash
 
 FAMILIES = ("sfs_sphere", "sfs_vase", "sfs_random")
 NOISE = 0.01
@@ -70,13 +74,13 @@ def floor_reference(true_height, true_normals, mask, *, pixel_size=1.0, height_r
 
 def result_arrays(out, shape):
     """(height, normals, converged or None) from what an SFS algorithm returned."""
-    z = C.attribute(out, "height", 0)
-    n = C.attribute(out, "normals", 1)
+    z = attribute(out, "height", 0)
+    n = attribute(out, "normals", 1)
     if z is None or n is None:
         raise ValueError("output: return height (H, W) and normals (H, W, 3) (an SFSResult, a dict or a tuple)")
-    z = C.check_array(z, "height", shape)
-    n = C.check_array(n, "normals", shape + (3,))
-    conv = C.attribute(out, "converged", None)
+    z = check_array(z, "height", shape)
+    n = check_array(n, "normals", shape + (3,))
+    conv = attribute(out, "converged", None)
     return z, n, (None if conv is None else float(bool(conv)))
 
 
@@ -114,9 +118,9 @@ class SFSTask(Task):
 
     @staticmethod
     def _params(spec, light, index) -> tuple:
-        d, e = C.nominal_light(light, spec.camera)
+        d, e = nominal_light(light, spec.camera)
         label = "view" if d[2] > 0.999 else "oblique"
-        return (("light", C.as_param(d)), ("irradiance", round(float(e), 9)), ("light_index", index),
+        return (("light", as_param(d)), ("irradiance", round(float(e), 9)), ("light_index", index),
                 ("label", label), ("half_width", float(spec.camera.half_width)))
 
     @staticmethod
@@ -132,8 +136,8 @@ class SFSTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            twins = C.family_scenes(f"{fam}_area")
-            for i, s in enumerate(C.family_scenes(fam)):
+            twins = family_scenes(f"{fam}_area")
+            for i, s in enumerate(family_scenes(fam)):
                 tw = twins[i] if i < len(twins) else None
                 tw_cases = dict((k, li) for li, k in self._cases(tw)) if tw is not None else {}
                 for light, k in self._cases(s):
@@ -166,41 +170,41 @@ class SFSTask(Task):
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        base, mods = C.parse_condition(job.condition)
+        base, mods = parse_condition(job.condition)
         k = int(job.param("light_index", -1))
         kind = "radiance" if base == "global" else "direct"
-        img = C.grey(gt[kind if k < 0 else f"light{k:02d}.{kind}"])
+        img = grey(gt[kind if k < 0 else f"light{k:02d}.{kind}"])
         if mods.get("noise", 0) > 0:
-            img = C.add_noise(img, mods["noise"], C.job_rng(job, seed))
+            img = add_noise(img, mods["noise"], job_rng(job, seed))
         mask = gt.mask
         light = np.asarray(job.param("light"), float)
         irr = float(job.param("irradiance", np.pi))
-        rho = float(np.median(C.grey(gt["albedo"])[mask])) if mask.any() else 1.0
+        rho = float(np.median(grey(gt["albedo"])[mask])) if mask.any() else 1.0
         known_albedo = rho * irr / np.pi
-        px = C.pixel_size(job.param("half_width", 1.0), img.shape[1])
+        px = pixel_size(job.param("half_width", 1.0), img.shape[1])
         z_true = np.where(mask, -gt["depth"].astype(float), 0.0)
         zrange = float(np.ptp(z_true[mask])) if mask.any() else None
         n_true = gt["normals"].astype(float)
         label = job.param("label")
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms, scene_label=f"{job.scene}:{label}" if label else None)
+        book = ScoreBook(job, scene_hash(gt), algorithms, scene_label=f"{job.scene}:{label}" if label else None)
         res = JobResult(job)
-        res.images["linear:input"] = C.display(img)
-        res.images["normals: truth"] = C.normals_display(n_true, mask)
+        res.images["linear:input"] = display(img)
+        res.images["normals: truth"] = normals_display(n_true, mask)
         row = img.shape[0] // 2
         zt_row = np.where(mask[row], z_true[row] - z_true[mask].mean(), np.nan)
         prof = {"truth": zt_row}
         s_unit = light / np.linalg.norm(light)
         for alg in algorithms:
             if alg.interface == "reference":
-                with C.Timer() as t:
+                with Timer() as t:
                     sc = alg(z_true, n_true, mask, pixel_size=px, height_range=zrange, quality=quality)
                 book.add(alg.name, sc, t.seconds)
                 if alg.kind == "baseline":
                     prof[alg.name] = np.where(mask[row], 0.0, np.nan)
                 continue
             if alg.interface == "light":
-                out, seconds, err = C.call(alg, img, mask, quality=quality,
-                                           check=lambda o: C.check_array(C.attribute(o, "direction", 0), "direction", (3,)))
+                out, seconds, err = call(alg, img, mask, quality=quality,
+                                           check=lambda o: check_array(attribute(o, "direction", 0), "direction", (3,)))
                 if err is not None:
                     book.add(alg.name, {"failed": 1.0}, seconds)
                     res.failures[alg.name] = err
@@ -210,7 +214,7 @@ class SFSTask(Task):
                     ang = float(np.degrees(np.arccos(np.clip(np.dot(d, s_unit), -1, 1))))
                     book.add(alg.name, {"light_error_deg": ang}, 0.0)
                 continue
-            out, seconds, err = C.call(alg, img, light, albedo=known_albedo, mask=mask, pixel_size=px,
+            out, seconds, err = call(alg, img, light, albedo=known_albedo, mask=mask, pixel_size=px,
                                        quality=quality, check=lambda o: result_arrays(o, img.shape))
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, seconds)
@@ -224,8 +228,8 @@ class SFSTask(Task):
             book.add(alg.name, sc, seconds)
             if alg.figures:
                 prof[alg.name] = np.where(mask[row], z[row], np.nan)
-                res.images[f"normals: {alg.name}"] = C.normals_display(n, mask)
-                res.error_maps[f"height error (offset removed): {alg.name}"] = C.display_map(
+                res.images[f"normals: {alg.name}"] = normals_display(n, mask)
+                res.error_maps[f"height error (offset removed): {alg.name}"] = display_map(
                     np.where(mask, (z - z[mask].mean()) - (z_true - z_true[mask].mean()), np.nan))
         floors = [a for a in algorithms if a.kind == "floor" and a.interface == "reference"]
         if floors:
@@ -234,7 +238,7 @@ class SFSTask(Task):
             dom = mask & (n_true[..., 2] > 1e-3)
             z_floor = floor_height(n_true, dom, pixel_size=px)
             prof[floors[0].name] = np.where(dom[row], z_floor[row], np.nan)
-        res.plots[f"height profile, row {row}"] = C.profile_plot(
+        res.plots[f"height profile, row {row}"] = profile_plot(
             np.arange(img.shape[1]) * px, prof, "x (world units from the left edge)", "height (offset removed)")
         res.scores = book.scores
         return res

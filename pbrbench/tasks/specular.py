@@ -34,8 +34,11 @@ import numpy as np
 
 from pbrbench.metrics.specular import specular_mask_from_twin, specular_scores
 from pbrbench.registry import Algorithm
-from pbrbench.tasks import _common as C
-from pbrbench.tasks.base import Job, JobResult, Prediction, Task
+from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
+from pbrbench.tasks.common.figures import display, display_map
+from pbrbench.tasks.common.inputs import add_noise, grey, job_rng
+from pbrbench.tasks.common.scenes import family_scenes
+from pbrbench.tasks.common.scoring import ScoreBook, attribute, call, check_array, scene_hash
 
 FAMILIES = ("specular_sphere", "specular_shapes")
 NOISE = 0.01
@@ -87,7 +90,7 @@ class SpecularTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            for s in C.family_scenes(fam):
+            for s in family_scenes(fam):
                 if s.has_glossy:
                     out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
@@ -95,24 +98,24 @@ class SpecularTask(Task):
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        _, mods = C.parse_condition(job.condition)
+        _, mods = parse_condition(job.condition)
         obj = gt.mask
         img = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
         if mods.get("noise", 0) > 0:
-            img = C.add_noise(img, mods["noise"], C.job_rng(job, seed), peak=float(img[obj].max()))
+            img = add_noise(img, mods["noise"], job_rng(job, seed), peak=float(img[obj].max()))
         twin = np.asarray(gt["diffuse_only"], np.float64)
         true_mask = specular_mask_from_twin(gt["radiance"], twin, threshold=0.1, reference="peak", mask=obj)
-        book = C.ScoreBook(job, C.scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
-        res.images["linear:input"] = C.display(img)
-        res.images["linear:truth (diffuse-only twin)"] = C.display(twin)
-        res.images["specular mask: truth"] = C.display(true_mask.astype(float))
+        res.images["linear:input"] = display(img)
+        res.images["linear:truth (diffuse-only twin)"] = display(twin)
+        res.images["specular mask: truth"] = display(true_mask.astype(float))
 
         def check_removed(o):
-            return C.check_array(o, "removed", img.shape)
+            return check_array(o, "removed", img.shape)
 
         def check_pair(o):
-            det, rem = C.attribute(o, "mask", 0), C.attribute(o, "removed", 1)
+            det, rem = attribute(o, "mask", 0), attribute(o, "removed", 1)
             if det is None or rem is None:
                 raise ValueError("output: return (detected_mask (H, W), removed_image) ")
             det = np.asarray(det)
@@ -123,10 +126,10 @@ class SpecularTask(Task):
         first = True
         for alg in algorithms:
             if alg.interface == "fill":
-                out, seconds, err = C.call(alg, img, true_mask, quality=quality, check=check_removed)
+                out, seconds, err = call(alg, img, true_mask, quality=quality, check=check_removed)
                 detected = None
             else:
-                out, seconds, err = C.call(alg, img, mask=obj, quality=quality, check=check_pair)
+                out, seconds, err = call(alg, img, mask=obj, quality=quality, check=check_pair)
                 if err is None:
                     detected, out = out
             if err is not None:
@@ -136,11 +139,11 @@ class SpecularTask(Task):
             book.add(alg.name, specular_scores(out, twin, true_mask, obj, detected=detected), seconds)
             if first and alg.kind == "method":
                 first = False
-                res.images[f"specular mask: {alg.name}"] = C.display(detected.astype(float))
-                res.images[f"linear:removed: {alg.name}"] = C.display(out)
-                ref_b = max(float(C.grey(twin)[obj].max()), 1e-30) if obj.any() else 1.0
-                res.error_maps[f"|removed - twin| / peak: {alg.name}"] = C.display_map(
-                    np.where(obj, np.abs(C.grey(out) - C.grey(twin)) / ref_b, np.nan))
+                res.images[f"specular mask: {alg.name}"] = display(detected.astype(float))
+                res.images[f"linear:removed: {alg.name}"] = display(out)
+                ref_b = max(float(grey(twin)[obj].max()), 1e-30) if obj.any() else 1.0
+                res.error_maps[f"|removed - twin| / peak: {alg.name}"] = display_map(
+                    np.where(obj, np.abs(grey(out) - grey(twin)) / ref_b, np.nan))
         res.scores = book.scores
         return res
 

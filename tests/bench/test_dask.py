@@ -14,8 +14,8 @@ from pbrbench.bench.run import RunConfig, run_benchmark  # noqa: E402
 from pbrbench.bench.source import GroundTruthSource  # noqa: E402
 from pbrbench.registry import Algorithm  # noqa: E402
 from pbrbench.render.cache import RenderCache  # noqa: E402
-from pbrbench.tasks import _common as C  # noqa: E402
 from pbrbench.tasks.base import Job, JobResult, Task  # noqa: E402
+from pbrbench.tasks.common.scoring import ScoreBook  # noqa: E402
 from tests.fakes import FakeSource, FakeTask, settings_for  # noqa: E402
 
 ROOT = str(Path(__file__).resolve().parents[2])
@@ -47,7 +47,7 @@ class RenderedStats(Task):
         gt = gts[job.scene]
         img = gt["direct"] if job.condition == "local" else gt["radiance"]
         out = JobResult(job)
-        book = C.ScoreBook(job, gt.meta["scene_hash"], algorithms)
+        book = ScoreBook(job, gt.meta["scene_hash"], algorithms)
         for alg in algorithms:
             rng = np.random.default_rng([seed, job.param("k")])
             book.add(alg.name, {"height_rmse": alg(img, mask=gt.mask, k=job.param("k"), rng=rng)}, 0.0)

@@ -14,8 +14,8 @@ from pbrbench.bench.uncertainty import attach, replicate_scores
 from pbrbench.registry import Algorithm, builtin_registry
 from pbrbench.render.groundtruth import JK, GroundTruth, jackknife_sd, loo_deviations
 from pbrbench.render.quality import get_quality
-from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job, JobResult, Task
+from pbrbench.tasks.common.scoring import ScoreBook
 from pbrbench.uncertainty import estimate, jackknife, standard_error, unstable
 from tests.fakes import ps_gt, ps_job
 
@@ -52,7 +52,7 @@ class ErrorTask(Task):
 
     def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
         gt = gts[job.scene]
-        book = C.ScoreBook(job, "x", algorithms)
+        book = ScoreBook(job, "x", algorithms)
         for alg in algorithms:
             d = alg(gt["radiance"].astype(float)) - (1 + self.offset) * gt["albedo"]
             book.add(alg.name, {"height_rmse": float(np.sqrt(np.mean(d * d))), "height_mae": float(np.mean(np.abs(d))),
@@ -231,7 +231,7 @@ def test_a_replicate_that_changes_nothing_the_job_read_is_not_scored_again():
 
         def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
             calls.append(gts["s"].meta.get("replicate"))
-            book = C.ScoreBook(job, "x", algorithms)
+            book = ScoreBook(job, "x", algorithms)
             for alg in algorithms:
                 book.add(alg.name, {"height_rmse": float(np.mean(gts["s"][self.array]))}, 0.0)
             return JobResult(job, scores=book.scores)

@@ -7,16 +7,17 @@ import pytest
 
 from pbrbench.inverse import METHODS, inverse_rendering_nicolet2021
 from pbrbench.inverse import nicolet2021 as N
-from pbrbench.tasks import _common as C
+from pbrbench.scene.geometry import light_vectors
+from pbrbench.tasks.common.scenes import family_scenes
 
 
 @pytest.fixture(scope="module")
 def groove():
-    return {s.name: s for s in C.family_scenes("ps_groove")}["ps_groove[albedo=0.9]"]
+    return {s.name: s for s in family_scenes("ps_groove")}["ps_groove[albedo=0.9]"]
 
 
 def _inputs(spec, n=16):
-    lights = C.light_vectors(spec)
+    lights = light_vectors(spec)
     imgs = np.full((len(lights), n, n), 0.3)
     return imgs, lights, np.ones((n, n), bool)
 
@@ -58,7 +59,7 @@ def test_nan_in_the_images_is_refused(groove):
 
 
 def test_perspective_camera_is_refused():
-    room = C.family_scenes("room_white")[0]
+    room = family_scenes("room_white")[0]
     lights = np.tile([0.0, 0.0, 1.0], (3, 1))
     with pytest.raises(ValueError, match="orthographic"):
         inverse_rendering_nicolet2021(np.ones((3, 16, 16)), lights, mask=np.ones((16, 16), bool), scene=room)
@@ -110,7 +111,7 @@ def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
 
     mi = ad_mitsuba()
     n = 16
-    lights = C.light_vectors(groove)
+    lights = light_vectors(groove)
     hw = groove.camera.half_width
     hf = HeightField(np.ones((n, n), bool), hw, extend=frame_extension(groove, n, n))
     x, _ = hf.corner_xy()

@@ -11,6 +11,8 @@ import pytest
 
 from pbrbench.render import proofs as V
 from pbrbench.render.cache import RenderCache
+from pbrbench.render.proofs import direct as D
+from pbrbench.render.proofs.common import ground_truth_of
 
 
 @pytest.fixture(scope="module")
@@ -29,19 +31,19 @@ def _assert_all(records, expected):
 
 @pytest.mark.render
 def test_sphere_directional_and_normals(cache):
-    recs = V.check_sphere("draft", cache, kind="directional")
+    recs = D.check_sphere("draft", cache, kind="directional")
     _assert_all(recs, {"sphere_directional", "normals"})
     assert next(r for r in recs if r["check"] == "sphere_directional")["bound"] == 1e-3
 
 
 @pytest.mark.render
 def test_sphere_point_light(cache):
-    _assert_all(V.check_sphere("draft", cache, kind="point"), {"sphere_point"})
+    _assert_all(D.check_sphere("draft", cache, kind="point"), {"sphere_point"})
 
 
 @pytest.mark.render
 def test_area_source_penumbra_and_edges(cache):
-    recs = V.check_area_source("draft", cache)
+    recs = D.check_area_source("draft", cache)
     _assert_all(recs, {"area_source", "penumbra", "shadow_edges"})
     bounds = {r["check"]: r["bound"] for r in recs}
     assert bounds["area_source"] == 0.01 and bounds["penumbra"] == 0.02
@@ -49,19 +51,19 @@ def test_area_source_penumbra_and_edges(cache):
 
 @pytest.mark.render
 def test_integrating_sphere(cache):
-    recs = V.check_integrating_sphere("draft", cache)
+    recs = D.check_integrating_sphere("draft", cache)
     _assert_all(recs, {"integrating_sphere[rho=0.3]", "integrating_sphere[rho=0.6]", "integrating_sphere[rho=0.9]"})
     assert all(r["bound"] == 0.01 for r in recs)
 
 
 @pytest.mark.render
 def test_depth_of_a_tilted_plane(cache):
-    _assert_all(V.check_depth("draft", cache), {"depth", "normals_plane"})
+    _assert_all(D.check_depth("draft", cache), {"depth", "normals_plane"})
 
 
 @pytest.mark.render
 def test_decomposition_and_light_sum(cache, tmp_path):
-    _assert_all(V.check_decomposition("draft", cache, diagnostics_dir=tmp_path),
+    _assert_all(D.check_decomposition("draft", cache, diagnostics_dir=tmp_path),
                 {"decomposition", "light_sum", "light_sum_direct"})
 
 
@@ -72,12 +74,12 @@ def test_a_wrong_reference_fails(cache):
 
     from pbrbench.shading import irradiance as irr
 
-    spec = V.sphere_spec(V.DIR_LIGHT, name="validate_sphere_directional")
-    gt = V._gt(spec, "draft", cache)
-    w, h, _ = V._pixel_size(spec, "draft")
-    ref = irr.sphere_reference((w, h), V.SPHERE_HW, albedo=1.0, direction=V.DIR_LIGHT["direction"], irradiance=3.0 * 1.01)
-    refc = ref.radiance[..., None] * np.asarray(V.SPHERE_ALBEDO)
-    inner = V._interior(ref, gt.mask)
+    spec = D.sphere_spec(D.DIR_LIGHT, name="validate_sphere_directional")
+    gt = ground_truth_of(spec, "draft", cache)
+    w, h, _ = D._pixel_size(spec, "draft")
+    ref = irr.sphere_reference((w, h), D.SPHERE_HW, albedo=1.0, direction=D.DIR_LIGHT["direction"], irradiance=3.0 * 1.01)
+    refc = ref.radiance[..., None] * np.asarray(D.SPHERE_ALBEDO)
+    inner = D._interior(ref, gt.mask)
     rel = np.abs(gt["radiance"] - refc)[inner] / refc[inner]
     assert rel.max() > 5e-3
 

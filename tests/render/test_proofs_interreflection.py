@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pbrbench.render import proofs
-from pbrbench.render import proofs_interreflection as IR
 from pbrbench.render.cache import RenderCache
+from pbrbench.render.proofs import interreflection as IR
 
 RECORD_KEYS = {"check", "measured", "bound", "passed", "detail"}
 
@@ -113,11 +113,11 @@ def test_radiosity_room_and_the_perspective_index(cache):
     assert white.mean() > 1.3 * black.mean()  # the same direct light, far more light in the white room
     assert white.mean() > 1.3 * local.mean()
     # the patch the perspective index image gives contains the pixel's rendered position (position AOV)
-    from pbrbench.shading.forward_models import model_patches, view_width
-    from pbrbench.shading.radiosity_image import patch_index_image
+    from pbrbench.radiosity.forward_models import model_patches, view_width
+    from pbrbench.radiosity.image import patch_index_image
 
     spec = IR._library("room_white")[0]
-    gt = proofs._gt(spec, "draft", cache)
+    gt = proofs.common.ground_truth_of(spec, "draft", cache)
     H, W = gt.mask.shape
     mesh = model_patches(spec, view_width(spec) / 8)
     idx = patch_index_image(spec, mesh, (W, H))
@@ -143,7 +143,7 @@ def test_radiosity_cap_renderer_solver_and_photometric_stereo(cache):
 
 @pytest.mark.render
 def test_cap_without_a_photometric_stereo_method_fails_that_record(cache):
-    from pbrbench.render.proofs_cap import check_cap
+    from pbrbench.render.proofs.cap import check_cap
 
     spec = IR._library("ps_cap")[-1]
     recs = check_cap("draft", cache, specs=[spec])
@@ -155,10 +155,10 @@ def test_cap_without_a_photometric_stereo_method_fails_that_record(cache):
 def test_cap_records_fail_for_a_wrong_albedo(cache):
     """Failure mode: the closed form of another albedo (0.6 instead of 0.9) is refused by the render
     and the beta records."""
-    from pbrbench.render import proofs_cap as PC
+    from pbrbench.radiosity.concave_cap import cap_photometric_stereo_bias, cap_radiosity
+    from pbrbench.render.proofs import cap as PC
     from pbrbench.scene.geometry import light_vectors
     from pbrbench.shading import surfaces
-    from pbrbench.shading.concave_cap import cap_photometric_stereo_bias, cap_radiosity
 
     spec = IR._library("ps_cap")[-1]
     case = PC.cap_case(spec, "draft", cache, photometric_stereo=_woodham())
@@ -193,7 +193,7 @@ def test_mitsuba_measures_the_gain():
     ``|L - L0| <= L0 m``; each component of ``H`` is a difference of two phases over
     ``2 pi L0 m``, so its sd is at most ``sqrt(2) / (2 sqrt(spp))``.
     """
-    from pbrbench.render.proofs_gain import measure_gain_mitsuba
+    from pbrbench.render.proofs.gain import measure_gain_mitsuba
 
     spp = 1 << 18
     r = measure_gain_mitsuba(1.0, 0.7, spp=spp)  # L0 = 1, m = 0.5 (the defaults)

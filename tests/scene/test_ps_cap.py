@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from pbrbench.radiosity.concave_cap import cap_shadow_free
 from pbrbench.scene.load import load_scene_file
 from pbrbench.settings import LIBRARY_DIR
-from pbrbench.shading.concave_cap import cap_shadow_free
 
 
 def test_ps_cap_scene_file():

@@ -5,9 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrbench.scene.spec import Directional, SceneSpec
-from pbrbench.shading import surfaces
-from pbrbench.shading.concave_cap import (
+from pbrbench.radiosity.concave_cap import (
     cap_form_factor,
     cap_lit,
     cap_mean_direct,
@@ -18,14 +16,16 @@ from pbrbench.shading.concave_cap import (
     cap_shadow_free,
     spherical_cap_patches,
 )
-from pbrbench.shading.form_factors import strip_form_factors_2d
-from pbrbench.shading.groove_profile import groove_lit_fraction, groove_profile, groove_segments
-from pbrbench.shading.radiosity import (
+from pbrbench.radiosity.groove_profile import groove_lit_fraction, groove_profile, groove_segments
+from pbrbench.radiosity.solver import (
     direct_radiosity,
     form_factor_matrix,
     patches_from_spec,
     solve_radiosity,
 )
+from pbrbench.scene.spec import Directional, SceneSpec
+from pbrbench.shading import surfaces
+from pbrbench.shading.form_factors import strip_form_factors_2d
 
 
 def toward(gamma_deg, azimuth=0.7):

@@ -5,7 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrbench.shading.form_factor_matrix import form_factor_matrix
+from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
+from pbrbench.radiosity.patches import make_patches
+from pbrbench.radiosity.raycast import build_occluders, ray_triangle_hits
 from pbrbench.shading.form_factors import (
     parallel_rectangles_form_factor,
     patch_geometry,
@@ -15,8 +17,6 @@ from pbrbench.shading.form_factors import (
     strip_form_factors_2d,
 )
 from pbrbench.shading.irradiance import polygon_irradiance
-from pbrbench.shading.patches import make_patches
-from pbrbench.shading.raycast import build_occluders, ray_triangle_hits
 
 
 def grid_square(n, z=0.0, size=1.0, flip=False, offset=(0.0, 0.0)):

@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbrbench.radiosity.forward_models import predict_radiance
 from pbrbench.registry import Algorithm, Registry
 from pbrbench.render.groundtruth import GroundTruth
-from pbrbench.shading.forward_models import predict_radiance
 from pbrbench.tasks.base import Job
-from pbrbench.tasks.interreflection import TASK, scene_spec
+from pbrbench.tasks.common.scenes import scene_spec
+from pbrbench.tasks.interreflection import TASK
 from tests.fakes import run_task, scores_of
 
 

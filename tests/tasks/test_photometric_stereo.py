@@ -8,8 +8,8 @@ import pytest
 from pbrbench.render.groundtruth import GroundTruth
 from pbrbench.render.quality import get_quality
 from pbrbench.scene import spec as S
-from pbrbench.tasks import _common as C
 from pbrbench.tasks.base import Job
+from pbrbench.tasks.common.inputs import as_param, erode
 from tests.fakes import (
     FIVE,
     HW,
@@ -74,7 +74,7 @@ def test_ps_domain_drops_pixels_lit_by_fewer_than_three_lights():
     # pixels lit only by the three lights of the xz plane have no unique normal
     coplanar = lit[0] & lit[1] & lit[2] & ~lit[3]
     assert coplanar.any() and not np.any(dom & coplanar)
-    interior = C.erode(gt.mask, 1) & (lit.sum(0) >= 3) & ~coplanar
+    interior = erode(gt.mask, 1) & (lit.sum(0) >= 3) & ~coplanar
     assert np.all(dom[interior]) and np.all((cos > 0.049).sum(0)[dom] >= 3)
     sc = scores_of(run_task(TASK, ps_job(lights=four * np.pi), {"s": gt}))
     assert sc[("woodham1980", "normal_mean_deg")] < 0.01 and sc[("woodham1980", "coverage")] == 1.0
@@ -88,7 +88,7 @@ def test_ps_albedo_sweep_plot_job():
     for a in (0.1, 0.9):
         gts[f"ps_cup[albedo={a:g}]"], vec = ps_gt("cup", albedo=a, gi_gain=1 + a / 2)
     job = Job("photometric_stereo", "ps_cup[albedo=0.9]", "global",
-              (("plot", "albedo_sweep"), ("lights", C.as_param(vec)), ("half_width", HW)),
+              (("plot", "albedo_sweep"), ("lights", as_param(vec)), ("half_width", HW)),
               extra_scenes=("ps_cup[albedo=0.1]",))
     res = run_task(TASK, job, gts)
     assert res.scores == []

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbrbench.radiosity import forward_models as FM
+from pbrbench.radiosity.patches import patches_from_spec
 from pbrbench.scene.load import load_scene_file
 from pbrbench.settings import LIBRARY_DIR
-from pbrbench.shading import forward_models as FM
-from pbrbench.shading.patches import patches_from_spec
 
 
 def lib(family, k=0):
@@ -90,7 +90,7 @@ def test_bad_arguments_are_refused():
 
 def test_form_factors_are_kept_on_disk_by_geometry_and_survive_a_new_process(tmp_path, monkeypatch):
     from pbrbench.bench.source import reseeded
-    from pbrbench.shading import form_factor_matrix as FFM
+    from pbrbench.radiosity import form_factor_matrix as FFM
 
     spec = lib("room_white")
     FM.set_disk_cache(tmp_path / "ff")

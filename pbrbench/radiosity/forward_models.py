@@ -2,9 +2,9 @@
 
 Each model takes a :class:`~pbrbench.scene.spec.SceneSpec` and the ``(width, height)`` of the
 image to predict and returns the radiance ``B / pi`` seen by each pixel (H, W, 3) of the scene's
-camera (:func:`pbrbench.shading.radiosity_image.radiosity_image`, 3 x 3 points per pixel
+camera (:func:`pbrbench.radiosity.image.radiosity_image`, 3 x 3 points per pixel
 averaged, as the renders' box filter averages the footprint).  All of them come
-from one solution of the radiosity system (:mod:`pbrbench.shading.radiosity`)
+from one solution of the radiosity system (:mod:`pbrbench.radiosity.solver`)
 
 .. math::  B = E + \\rho F B, \\qquad B^{(0)} = E, \\quad B^{(k+1)} = E + \\rho F B^{(k)},
 
@@ -12,12 +12,12 @@ by the Jacobi iteration, whose step ``k`` holds exactly the light interreflected
 times: ``local`` is ``B^(0) = E`` (the direct light of every source, with shadows: the local
 shading model), ``radiosity:k`` is ``B^(k)``, ``radiosity`` the converged ``B``.
 
-The mesh (:func:`model_patches`): :func:`pbrbench.shading.patches.patches_from_spec` with patches
+The mesh (:func:`model_patches`): :func:`pbrbench.radiosity.patches.patches_from_spec` with patches
 of side ``view_width / cells`` (``view_width`` the width the camera sees at its target, ``cells``
 the model's option: 16 by default, fewer in a draft run through the quality profile), cut along the
 outlines of the boxes and area lights that rest on a rectangle (:func:`conforming_cuts`), except that a lone,
 unrotated ``spherical_cap`` heightfield is meshed as the inscribed ring mesh of
-:func:`pbrbench.shading.concave_cap.spherical_cap_patches` (planar facets on the sphere: no area is
+:func:`pbrbench.radiosity.concave_cap.spherical_cap_patches` (planar facets on the sphere: no area is
 lost at the rim, as the masked grid loses it).  Visibility in the form factors is sampled by rays
 unless no part of the scene can hide another (:func:`needs_visibility`: two planar faces, or a
 cap on its own, where the visibility term is exactly 1); the direct term always casts shadow rays.
@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbrbench.checks import check_int
-from pbrbench.shading.patches import Patches, make_patches, patches_from_spec
+from pbrbench.radiosity.patches import Patches, make_patches, patches_from_spec
 
 __all__ = [
     "SceneModel",
@@ -165,7 +165,7 @@ def _pieces(P: np.ndarray, F: np.ndarray, eps: float) -> list[np.ndarray]:
 
 def _box_faces(shape) -> list[tuple[np.ndarray, np.ndarray]]:
     """(corners (4, 3) counter-clockwise from outside, outward unit normal) of a box's six faces."""
-    from pbrbench.shading.patches import rotation_matrix
+    from pbrbench.radiosity.patches import rotation_matrix
 
     R = np.eye(3)
     for r in shape.rotate:
@@ -197,8 +197,8 @@ def conforming_cuts(spec, patches: Patches, patch_size: float) -> Patches:
     cut along it into convex pieces (quadrilaterals, or a fan of triangles), so that none
     straddles it; the rectangles' occluders are unchanged.
     """
+    from pbrbench.radiosity.patches import rotation_matrix
     from pbrbench.shading.irradiance import rectangle_polygon
-    from pbrbench.shading.patches import rotation_matrix
 
     lights = [lt for lt in list(spec.lights) + list(spec.light_set) if lt.type == "area"]
     boxes = [s for s in spec.shapes if s.type == "box"]
@@ -268,7 +268,7 @@ def conforming_cuts(spec, patches: Patches, patch_size: float) -> Patches:
 
 def model_patches(spec, patch_size: float) -> Patches:
     """The model's mesh of ``spec`` (see the module docstring) at patches of side ``patch_size``."""
-    from pbrbench.shading.concave_cap import spherical_cap_patches
+    from pbrbench.radiosity.concave_cap import spherical_cap_patches
 
     caps = [i for i, s in enumerate(spec.shapes) if _cap_shape(s)]
     if not caps:
@@ -407,9 +407,9 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
                 tol: float = 1e-8) -> SceneModel:
     """The radiosity solution of ``spec`` at patches of side ``view_width(spec) / cells`` (memoised);
     ``area_samples`` x ``area_samples`` shadow-ray points on each patch and area light sample the
-    lights' visibility (:func:`pbrbench.shading.radiosity.direct_radiosity`)."""
-    from pbrbench.shading.form_factor_matrix import form_factor_matrix
-    from pbrbench.shading.radiosity import direct_radiosity, solve_radiosity
+    lights' visibility (:func:`pbrbench.radiosity.solver.direct_radiosity`)."""
+    from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
+    from pbrbench.radiosity.solver import direct_radiosity, solve_radiosity
 
     cells = check_int(cells, "cells", 1, 512)
     patch_size = view_width(spec) / cells
@@ -440,7 +440,7 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
 
 
 def _index(spec, model: SceneModel, resolution) -> np.ndarray:
-    from pbrbench.shading.radiosity_image import patch_index_image
+    from pbrbench.radiosity.image import patch_index_image
 
     key = (spec.content_hash(), round(model.patch_size, 12), tuple(resolution))
     if key not in _INDEX:
@@ -454,7 +454,7 @@ def predict_radiance(spec, resolution, *, bounces: int | None = None, cells: int
     interreflections (0: the local model; None: converged), from :func:`scene_model`; each pixel
     the mean of ``supersample`` x ``supersample`` points of its footprint (as the renders' box
     filter); ``area_samples`` as in :func:`scene_model`."""
-    from pbrbench.shading.radiosity_image import radiosity_image
+    from pbrbench.radiosity.image import radiosity_image
 
     try:
         w, h = (int(resolution), int(resolution)) if np.isscalar(resolution) else (int(resolution[0]), int(resolution[1]))

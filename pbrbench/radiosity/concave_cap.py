@@ -44,7 +44,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_int, check_number, check_positive
-from pbrbench.shading.patches import Patches, make_patches
+from pbrbench.radiosity.patches import Patches, make_patches
 
 __all__ = [
     "spherical_cap_patches",

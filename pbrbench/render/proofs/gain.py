@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.render.proofs import Record, _rec
+from pbrbench.render.proofs.common import Record, record
 from pbrbench.render.quality import get_quality
 from pbrbench.shading.gain_curve import gain_curve, gain_measurement_spec
 
@@ -110,7 +110,7 @@ def check_gain_curve(quality: str = "draft", cache=None, *, figures=None, points
               f"({spp} samples per phase, 4 phases), z = {z:.2f}, texel discretisation d <= (omega dx)^2/8 relative; "
               f"largest relative difference {100 * worst_rel:.2f} %; "
               + "; ".join(f"omega {w:g} slant {s:g}: {g:.4f} vs {e:.4f}" for w, s, g, e, _ in rows))
-    out = [_rec("gain_curve", worst, 1.0, detail)]
+    out = [record("gain_curve", worst, 1.0, detail)]
     if figures is not None:
         om = np.linspace(0.0, 6.0, 61)
         slants = sorted({s for _, s, *_ in rows} | {0.0, 0.7, 1.4})

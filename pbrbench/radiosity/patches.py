@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_int, check_positive
+from pbrbench.radiosity.raycast import Occluders, build_occluders
 from pbrbench.shading.form_factors import as_patch_vertices, patch_geometry
-from pbrbench.shading.raycast import Occluders, build_occluders
 
 __all__ = ["Patches", "make_patches", "patches_from_spec", "rotation_matrix", "SUPPORTED_SHAPES"]
 

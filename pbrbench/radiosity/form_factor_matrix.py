@@ -7,13 +7,13 @@ with ``x_q, w_q`` a quadrature rule on the receiving patch ``P_i``
 (:func:`~pbrbench.shading.form_factors.patch_quadrature`), ``F(x -> P_j)`` the exact
 point-to-polygon factor (:func:`~pbrbench.shading.form_factors.point_polygon_form_factors`)
 and ``V_j(x)`` the kernel-weighted fraction of sample points ``y_s`` of ``P_j`` that ``x`` sees
-(``K = cos cos' / r^2``; rays cast by :func:`pbrbench.shading.raycast.segments_blocked`).  This is
+(``K = cos cos' / r^2``; rays cast by :func:`pbrbench.radiosity.raycast.segments_blocked`).  This is
 the ray-cast visibility of Wallace, Elmquist and Haines (1989) on top of the exact unoccluded
 factor; without occluders between the patches ``V = 1`` and the only error is the outer
 quadrature.  Pairs closer than ``vis_near`` (distance ratio below) are sampled with rays between
 ``vis_order`` x ``vis_order`` Gauss points of both patches; farther pairs with the single ray
 between the centroids (binary, and reciprocal: ``V_ij = V_ji``).  Only pairs that some occluder
-may block cast rays at all (:mod:`pbrbench.shading.raycast` culls by bounding spheres and
+may block cast rays at all (:mod:`pbrbench.radiosity.raycast` culls by bounding spheres and
 separating planes).
 
 The outer rule adapts to the separation: for the distance ratio
@@ -48,13 +48,13 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_int
+from pbrbench.radiosity.raycast import front_flags, segments_blocked, side_flags
 from pbrbench.shading.form_factors import (
     as_patch_vertices,
     patch_geometry,
     patch_quadrature,
     point_polygon_form_factors,
 )
-from pbrbench.shading.raycast import front_flags, segments_blocked, side_flags
 
 __all__ = ["form_factor_matrix", "DEFAULT_TIERS", "VisibilityContext", "visible_fraction"]
 
@@ -139,9 +139,9 @@ def _nearest_node(rule, coarse) -> np.ndarray:
     def nodes(ns, o):
         if ns == 1 and o == 1:
             return np.array([[0.5, 0.5]])
-        from pbrbench.shading.form_factors import _gauss01
+        from pbrbench.shading.form_factors import gauss_legendre01
 
-        g, _ = _gauss01(o)
+        g, _ = gauss_legendre01(o)
         u1 = ((np.arange(ns)[:, None] + g[None, :]) / ns).ravel()
         U, V = np.meshgrid(u1, u1, indexing="ij")
         return np.stack([U.ravel(), V.ravel()], -1)

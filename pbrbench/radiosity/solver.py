@@ -18,7 +18,7 @@ iteration ``B^{(k+1)} = E + rho F B^{(k)}`` from ``B^{(0)} = E`` (the local shad
 after ``k`` steps exactly the light that has been interreflected at most ``k`` times.
 
 Discretisation error: ``F`` is computed to about 1e-3 relative (exact inner integral, adaptive
-outer quadrature; :mod:`pbrbench.shading.form_factor_matrix`) and visibility is sampled by rays
+outer quadrature; :mod:`pbrbench.radiosity.form_factor_matrix`) and visibility is sampled by rays
 (2 x 2 points on both patches for close pairs, one centroid ray otherwise), so the error comes
 from the piecewise-constant ``B``: ``O(h^2)`` for a smooth solution (the concave cap at 60 degrees:
 max error 1.0 % -> 0.37 % from 8 to 16 rings), ``O(h)`` where light or visibility changes inside a
@@ -45,11 +45,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_int, check_method, check_number
-from pbrbench.shading.form_factor_matrix import VisibilityContext, form_factor_matrix
+from pbrbench.radiosity.form_factor_matrix import VisibilityContext, form_factor_matrix
+from pbrbench.radiosity.image import patch_index_image, radiosity_image
+from pbrbench.radiosity.patches import Patches, make_patches, patches_from_spec
+from pbrbench.radiosity.raycast import segments_blocked, side_flags
 from pbrbench.shading.form_factors import patch_quadrature
-from pbrbench.shading.patches import Patches, make_patches, patches_from_spec
-from pbrbench.shading.radiosity_image import patch_index_image, radiosity_image
-from pbrbench.shading.raycast import segments_blocked, side_flags
 
 __all__ = [
     "Patches",

@@ -1,71 +1,17 @@
-"""Proof that the ground-truth renders are right: closed-form and statistical checks.
-
-Each check renders (through the render cache) small validation scenes built from SceneSpec
-dicts, compares them with an exact answer from :mod:`pbrbench.shading.irradiance` or with a
-second, independent render, and returns records
-``{"check", "measured", "bound", "passed", "detail"}``.  The checks:
-
-1. ``sphere_directional``, ``sphere_point``: a Lambertian sphere against the box-filtered analytic
-   image ``rho E max(0, N.S) / pi`` and ``rho I cos / (pi r^2)``; relative error on fully covered
-   interior pixels.
-2. ``area_source``: the receiving plane of ``shadow_near`` without its occluder against Lambert's
-   formula for the polygonal source (error relative to the peak); ``penumbra``: the profile across
-   the shadow against the exact irradiance of the visible part of the source; ``shadow_edges``:
-   umbra and penumbra boundaries where the source projected through the occluder's edges puts them.
-3. ``integrating_sphere``: inside a closed Lambertian sphere with a point source at the centre,
-   ``L = L_direct / (1 - rho)`` for rho = 0.3, 0.6, 0.9.
-4. ``normals``: AOV normals of the sphere against the analytic normals (degrees); ``depth``: depth
-   of a tilted plane against the analytic plane.
-5. ``decomposition``: direct + indirect of one render against the global radiance of an
-   independent render (another seed), per-pixel t-test; ``light_sum``: the per-light images sum
-   to the all-lights render, per-pixel t-test.  For these records ``measured`` is the number of
-   pixel tests rejected at a family-wise alpha of 0.01 (Bonferroni) and ``bound`` is 0.
-6. Interreflection (:mod:`pbrbench.render.proofs_interreflection`, :mod:`.proofs_cap`,
-   :mod:`.proofs_gain`): ``radiosity_groove``, ``radiosity_room``, ``radiosity_cap`` (the
-   radiosity model and the concave cap's closed form, with photometric stereo, against the path
-   tracer) and ``gain_curve`` (the kernel integral against Mitsuba's irradiance meter).
-
-The validation scenes state their ``standard`` settings; ``quality`` scales them as for the
-library (draft: resolution / 4 with at least 32 px, spp / 16), and each bound holds at draft.
-"""
+"""The direct-light proofs: a Lambertian sphere, depth, an area source's shadow, the integrating
+sphere and the direct/indirect decomposition, each against a closed form or an independent render
+(the list is in :mod:`pbrbench.render.proofs`)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 
 import numpy as np
 
+from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.render.quality import get_quality
 from pbrbench.scene.spec import SceneSpec
 from pbrbench.shading import irradiance as irr
-
-Record = dict
-
-
-def _rec(check: str, measured: float, bound: float, detail: str = "", *, passed: bool | None = None) -> Record:
-    ok = bool(measured <= bound) if passed is None else bool(passed)
-    return {"check": check, "measured": float(measured), "bound": float(bound), "passed": ok, "detail": detail}
-
-
-def _gt(spec: SceneSpec, quality: str, cache):
-    from pbrbench.render.cache import RenderCache, ground_truth
-
-    cache = cache if cache is not None else RenderCache()
-    gt, _ = ground_truth(spec, quality, cache=cache)
-    return gt
-
-
-def _quiet_mitsuba():
-    """Silence Mitsuba's warnings (e.g. multijitter rounding a sample count) during validation."""
-    try:
-        from pbrbench.render.variant import mitsuba
-
-        mi = mitsuba()
-        mi.set_log_level(mi.LogLevel.Error)
-    except Exception:  # pragma: no cover - validation still runs with warnings
-        pass
-
 
 # --------------------------------------------------------------------------- scenes
 SPHERE_ALBEDO = (0.2, 0.5, 0.8)
@@ -167,7 +113,7 @@ def check_sphere(quality: str = "draft", cache=None, *, kind: str = "directional
     """Proof 1 (and the normals of proof 4): sphere vs the box-filtered analytic image."""
     light = DIR_LIGHT if kind == "directional" else POINT_LIGHT
     spec = sphere_spec(light, name=f"validate_sphere_{kind}")
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     w, h, _ = _pixel_size(spec, quality)
     kw = ({"direction": light["direction"], "irradiance": light["irradiance"]} if kind == "directional"
           else {"position": light["position"], "intensity": light["intensity"]})
@@ -177,19 +123,19 @@ def check_sphere(quality: str = "draft", cache=None, *, kind: str = "directional
     inner = _interior(ref, gt.mask)
     rel = np.abs(img - refc)[inner] / refc[inner]
     bias = float(img[inner].mean() / refc[inner].mean() - 1)
-    out = [_rec(f"sphere_{kind}", float(rel.max()), 1e-3,
+    out = [record(f"sphere_{kind}", float(rel.max()), 1e-3,
                 f"max relative error over {int(inner.sum())} interior pixels (covered, lit > 5 %, n_z > 0.3); "
                 f"median {np.median(rel):.1e}, bias {bias:+.1e}; {w}x{h}, {gt.meta['spp']} spp")]
     edge = (ref.coverage > 0) & (ref.coverage < 1)
     edge_err = float(np.abs(img - refc)[edge].max() / refc.max()) if edge.any() else 0.0
-    out.append(_rec(f"sphere_{kind}_silhouette", edge_err, 0.05,
+    out.append(record(f"sphere_{kind}_silhouette", edge_err, 0.05,
                     f"max error of partly covered pixels / peak (exact coverage reference); {int(edge.sum())} pixels"))
     if kind == "directional":
         n = gt["normals"].astype(np.float64)
         m = gt.mask & (ref.coverage >= 1.0)
         cos = np.clip(np.sum(n * ref.normals, -1), -1, 1)
         ang = np.degrees(np.arccos(cos))[m]
-        out.append(_rec("normals", float(ang.max()), 0.5,
+        out.append(record("normals", float(ang.max()), 0.5,
                         f"max angle (deg) between AOV and box-averaged analytic normals over {int(m.sum())} covered pixels; "
                         f"mean {ang.mean():.2e}"))
     return out
@@ -198,7 +144,7 @@ def check_sphere(quality: str = "draft", cache=None, *, kind: str = "directional
 def check_depth(quality: str = "draft", cache=None) -> list[Record]:
     """Proof 4: depth (along the view axis) and normals of a tilted plane vs the analytic plane."""
     spec = tilted_plane_spec()
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     from pbrbench.shading.surfaces import pixel_grid
 
     w, h, px = _pixel_size(spec, quality)
@@ -213,10 +159,10 @@ def check_depth(quality: str = "draft", cache=None) -> list[Record]:
     err = np.abs(gt["depth"].astype(np.float64) - depth_ref)[m]
     slope = math.hypot(n[0] / n[2], n[1] / n[2])
     nerr = np.degrees(np.arccos(np.clip(gt["normals"].astype(np.float64)[m] @ n, -1, 1)))
-    return [_rec("depth", float(err.max()), 0.01 * px * max(slope, 1.0),
+    return [record("depth", float(err.max()), 0.01 * px * max(slope, 1.0),
                  f"max |depth - analytic| (world units) over {int(m.sum())} pixels; bound = 1 % of the depth change across a pixel "
                  f"({px * slope:.3g})"),
-            _rec("normals_plane", float(nerr.max()), 0.5, "max angle (deg) between AOV normals and the plane normal")]
+            record("normals_plane", float(nerr.max()), 0.5, "max angle (deg) between AOV normals and the plane normal")]
 
 
 def _rotate(v, axis, angle_deg):
@@ -230,7 +176,7 @@ def _rotate(v, axis, angle_deg):
 def check_area_source(quality: str = "draft", cache=None) -> list[Record]:
     """Proof 2: Lambert's formula without the occluder; penumbra profile and edges with it."""
     spec = shadow_spec()
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     w, h, px = _pixel_size(spec, quality)
     light = spec.lights[0]
     src = irr.rectangle_polygon(light.center, light.size, light.normal, light.up)
@@ -251,7 +197,7 @@ def check_area_source(quality: str = "draft", cache=None) -> list[Record]:
     un = gt["direct_unoccluded"].astype(np.float64).mean(-1)
     peak = ref_un.max()
     e1 = float(np.abs(un - ref_un).max() / peak)
-    out = [_rec("area_source", e1, 0.01, f"max |render - Lambert's formula| / peak over all {w}x{h} pixels (no occluder); "
+    out = [record("area_source", e1, 0.01, f"max |render - Lambert's formula| / peak over all {w}x{h} pixels (no occluder); "
                                            f"peak radiance {peak:.4f}")]
     # penumbra profile: the two rows straddling y = 0, exact visible-part irradiance, 8x8 sub-samples
     rows = [h // 2 - 1, h // 2]
@@ -268,7 +214,7 @@ def check_area_source(quality: str = "draft", cache=None) -> list[Record]:
     prof_ref = np.array(prof_ref)
     prof = gt["direct"].astype(np.float64).mean(-1)[rows]
     e2 = float(np.abs(prof - prof_ref).max() / peak)
-    out.append(_rec("penumbra", e2, 0.02, f"max |render - exact visible-part irradiance| / peak along the rows through the shadow "
+    out.append(record("penumbra", e2, 0.02, f"max |render - exact visible-part irradiance| / peak along the rows through the shadow "
                                           f"({w} pixels x 2 rows)"))
     # umbra / penumbra edges along those rows, from the projection of the source through the occluder's edges
     regions = irr.shadow_regions(src[:, :2], light.center[2], occ[:, :2], occ_shape.center[2])
@@ -286,7 +232,7 @@ def check_area_source(quality: str = "draft", cache=None) -> list[Record]:
             d = abs(x_meas - x_pred) / px
             worst = max(worst, d)
             detail.append(f"{name} {side} {x_pred:+.3f}/{x_meas:+.3f}")
-    out.append(_rec("shadow_edges", worst, 1.0, "max |measured - predicted| edge position in pixels (predicted/measured x: "
+    out.append(record("shadow_edges", worst, 1.0, "max |measured - predicted| edge position in pixels (predicted/measured x: "
                                                  + ", ".join(detail) + ")"))
     return out
 
@@ -311,12 +257,12 @@ def check_integrating_sphere(quality: str = "draft", cache=None, albedos=(0.3, 0
     out = []
     for rho in albedos:
         spec = integrating_sphere_spec(rho)
-        gt = _gt(spec, quality, cache)
+        gt = ground_truth_of(spec, quality, cache)
         d_ref, g_ref = irr.integrating_sphere_radiance(rho, 10.0, 1.0)
         g = float(gt["radiance"].astype(np.float64).mean())
         d = float(gt["direct"].astype(np.float64).mean())
         sd = float(np.sqrt(np.mean(gt["radiance_sd"].astype(np.float64) ** 2) / gt["radiance"].size))
-        out.append(_rec(f"integrating_sphere[rho={rho:g}]", abs(g / g_ref - 1), 0.01,
+        out.append(record(f"integrating_sphere[rho={rho:g}]", abs(g / g_ref - 1), 0.01,
                         f"image mean {g:.5f} vs L_d/(1-rho) = {g_ref:.5f} (sd of the mean ~{sd / g_ref:.1e} relative); "
                         f"direct {d:.6f} vs {d_ref:.6f} ({abs(d / d_ref - 1):.1e})"))
     return out
@@ -327,74 +273,24 @@ def check_decomposition(quality: str = "draft", cache=None, *, alpha: float = 0.
     """Proof 5: direct + indirect (seed 0) vs global (seed 1); sum of per-light images vs all lights."""
     from pbrbench.render.stats import compare_images
 
-    a = _gt(gi_spec(seed=0), quality, cache)
-    b = _gt(gi_spec(seed=1), quality, cache)
+    a = ground_truth_of(gi_spec(seed=0), quality, cache)
+    b = ground_truth_of(gi_spec(seed=1), quality, cache)
     img = a["direct"].astype(np.float64) + a["indirect"].astype(np.float64)
     # indirect = radiance - direct with shared seeds, so the noise of direct + indirect is that of radiance
     r1 = compare_images(img, b["radiance"], b["radiance_sd"], image_sd=a["radiance_sd"], alpha=alpha,
                         diagnostics_dir=diagnostics_dir, name="decomposition")
-    out = [_rec("decomposition", r1.n_rejected, 0, "direct + indirect (seed 0) vs global radiance (seed 1): "
+    out = [record("decomposition", r1.n_rejected, 0, "direct + indirect (seed 0) vs global radiance (seed 1): "
                 + r1.summary(), passed=r1.passed)]
     lights = a.light_stack("radiance").astype(np.float64).sum(0)
     # the ground truth stores no per-light sd; the all-lights sd stands in for the sum's (conservative:
     # each per-light render spends all its samples on one source)
     r2 = compare_images(lights, a["radiance"], a["radiance_sd"], image_sd=a["radiance_sd"], alpha=alpha,
                         diagnostics_dir=diagnostics_dir, name="light_sum")
-    out.append(_rec("light_sum", r2.n_rejected, 0, f"sum of {a.n_lights} per-light renders vs all-lights render: "
+    out.append(record("light_sum", r2.n_rejected, 0, f"sum of {a.n_lights} per-light renders vs all-lights render: "
                     + r2.summary(), passed=r2.passed))
     dsum = a.light_stack("direct").astype(np.float64).sum(0)
     r3 = compare_images(dsum, a["direct"], a["direct_sd"], image_sd=a["direct_sd"], alpha=alpha,
                         diagnostics_dir=diagnostics_dir, name="light_sum_direct")
-    out.append(_rec("light_sum_direct", r3.n_rejected, 0, "sum of per-light direct renders vs all-lights direct: "
+    out.append(record("light_sum_direct", r3.n_rejected, 0, "sum of per-light direct renders vs all-lights direct: "
                     + r3.summary(), passed=r3.passed))
-    return out
-
-
-# --------------------------------------------------------------------------- registry
-def _ir(module: str):
-    """The interreflection check modules beside this one (imported when a check runs)."""
-    import importlib
-
-    return importlib.import_module(f"pbrbench.render.{module}")
-
-
-# every check: (quality, cache, *, diagnostics_dir, figures, photometric_stereo) -> records; ``figures``
-# (a dict, when given) collects plot dicts, ``photometric_stereo`` is the method the cap check runs
-CHECKS: dict[str, Callable[..., list[Record]]] = {
-    "sphere_directional": lambda q, c, **kw: check_sphere(q, c, kind="directional"),
-    "sphere_point": lambda q, c, **kw: check_sphere(q, c, kind="point"),
-    "area_source": lambda q, c, **kw: check_area_source(q, c),
-    "integrating_sphere": lambda q, c, **kw: check_integrating_sphere(q, c),
-    "depth": lambda q, c, **kw: check_depth(q, c),
-    "decomposition": lambda q, c, **kw: check_decomposition(q, c, diagnostics_dir=kw.get("diagnostics_dir")),
-    "radiosity_groove": lambda q, c, **kw: _ir("proofs_interreflection").check_groove(q, c, figures=kw.get("figures")),
-    "radiosity_room": lambda q, c, **kw: _ir("proofs_interreflection").check_room(q, c, figures=kw.get("figures")),
-    "radiosity_cap": lambda q, c, **kw: _ir("proofs_cap").check_cap(q, c, figures=kw.get("figures"),
-                                                                     photometric_stereo=kw.get("photometric_stereo")),
-    "gain_curve": lambda q, c, **kw: _ir("proofs_gain").check_gain_curve(q, c, figures=kw.get("figures")),
-}
-
-
-def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None, diagnostics_dir=None,
-               figures=None, photometric_stereo=None) -> list[Record]:
-    """Run the named checks (default: all) at ``quality``; returns every record.  Statistical
-    checks that fail write diagnostic images into ``diagnostics_dir`` when it is given; checks
-    with figures add them (name -> plot dict) to ``figures`` when it is given; the cap check runs
-    ``photometric_stereo`` (a method of :data:`pbrbench.infer.photometric_stereo.METHODS`, which
-    this layer does not import) on its renders."""
-    get_quality(quality)
-    names = list(CHECKS) if not checks else list(checks)
-    unknown = [n for n in names if n not in CHECKS]
-    if unknown:
-        from pbrbench.errors import UserError
-
-        raise UserError(f"--checks: unknown check(s) {', '.join(unknown)}; choose from {', '.join(CHECKS)}")
-    _quiet_mitsuba()
-    out: list[Record] = []
-    for n in names:
-        recs = CHECKS[n](quality, cache, diagnostics_dir=diagnostics_dir, figures=figures,
-                         photometric_stereo=photometric_stereo)
-        out += recs
-        if progress is not None:
-            progress(n, recs)
     return out

@@ -1,5 +1,5 @@
 """The concave-cap check of ``pbrbench validate`` (``radiosity_cap``): renderer, solver and photometric
-stereo against the closed form of :mod:`pbrbench.shading.concave_cap`.
+stereo against the closed form of :mod:`pbrbench.radiosity.concave_cap`.
 
 Inside a sphere the interreflection kernel is constant, so under distant sources within
 ``90 - alpha`` of the axis ``a`` the radiosity of a cap of half-angle ``alpha`` is
@@ -13,7 +13,7 @@ Records per cap (``rho``, ``alpha``):
 
 * ``...:render`` and ``...:render:peak`` -- each light's rendered radiance against the closed form,
   means over the cells of a 4-ring mesh of the cap (interior pixels: pure, and 2 pixels inside the
-  rim), as in :mod:`pbrbench.render.proofs_interreflection` (noise ``z se``; the discretisation
+  rim), as in :mod:`pbrbench.render.proofs.interreflection` (noise ``z se``; the discretisation
   allowance is the rendered mesh's: the heightfield grid drops the cells cut by the rim, a
   fraction ``delta`` of the cap's area, which lowers the interreflected term
   ``U = rho f E-bar / (1 - rho f)`` by about ``delta U / (1 - rho f)``);
@@ -42,8 +42,8 @@ import math
 
 import numpy as np
 
-from pbrbench.render.proofs import Record, _gt, _rec
-from pbrbench.render.proofs_interreflection import MAX_EXCESS, Cells, _grey, _library, _z, cap_spec
+from pbrbench.render.proofs.common import Record, ground_truth_of, record
+from pbrbench.render.proofs.interreflection import MAX_EXCESS, Cells, _grey, _library, _z, cap_spec
 from pbrbench.render.quality import get_quality
 
 __all__ = ["check_cap", "cap_case", "cap_cases", "mesh_area_deficit"]
@@ -86,9 +86,7 @@ def _geometry(spec):
 
 def cap_case(spec, quality: str, cache, *, photometric_stereo=None) -> dict:
     """Everything the cap records need for one cap (render, closed form, solver, photometric stereo)."""
-    from pbrbench.scene.geometry import light_vectors
-    from pbrbench.shading import surfaces
-    from pbrbench.shading.concave_cap import (
+    from pbrbench.radiosity.concave_cap import (
         cap_form_factor,
         cap_mean_direct,
         cap_photometric_stereo_bias,
@@ -96,10 +94,12 @@ def cap_case(spec, quality: str, cache, *, photometric_stereo=None) -> dict:
         cap_shadow_free,
         spherical_cap_patches,
     )
-    from pbrbench.shading.radiosity_image import patch_index_image
+    from pbrbench.radiosity.image import patch_index_image
+    from pbrbench.scene.geometry import light_vectors
+    from pbrbench.shading import surfaces
 
     R, alpha, rho = _geometry(spec)
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     H, W = gt["radiance"].shape[:2]
     X, Y = surfaces.pixel_grid(H, W, spec.camera.half_width)
     surf = surfaces.evaluate("spherical_cap", X, Y, radius=R, half_angle_deg=alpha)
@@ -132,9 +132,13 @@ def cap_case(spec, quality: str, cache, *, photometric_stereo=None) -> dict:
 
 
 def _solver(R, alpha, rho, S, E0) -> dict:
-    from pbrbench.shading.concave_cap import cap_form_factor, cap_mean_direct, spherical_cap_patches
-    from pbrbench.shading.form_factor_matrix import form_factor_matrix
-    from pbrbench.shading.radiosity import solve_radiosity
+    from pbrbench.radiosity.concave_cap import (
+        cap_form_factor,
+        cap_mean_direct,
+        spherical_cap_patches,
+    )
+    from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
+    from pbrbench.radiosity.solver import solve_radiosity
 
     f = cap_form_factor(alpha)
     U = rho * f * cap_mean_direct(rho, alpha, S, E0) / (1 - rho * f)
@@ -228,15 +232,15 @@ def _case_records(c: dict) -> list[Record]:
     tail = (f"{K} lights x {c['rings']}-ring cells ({m} compared); noise z*se <= {100 * noise:.2f} % of the peak "
             f"(z = {z:.2f}); mesh allowance (rendered grid lacks {100 * delta:.2f} % of the area) "
             f"{100 * disc:.2f} % of the peak; largest |render - closed form| {100 * big:.2f} % of the peak {c['peak']:.4g}")
-    out = [_rec(f"{name}:render", ratio, 1.0, "max |render - closed form| / (z se + d), per light and cell; " + tail),
-           _rec(f"{name}:render:peak", excess, MAX_EXCESS, "max (|render - closed form| - z se)_+ / peak; " + tail)]
+    out = [record(f"{name}:render", ratio, 1.0, "max |render - closed form| / (z se + d), per light and cell; " + tail),
+           record(f"{name}:render:peak", excess, MAX_EXCESS, "max (|render - closed form| - z se)_+ / peak; " + tail)]
     s = c["solver"]
-    out.append(_rec(f"{name}:solver", s["error"], MAX_EXCESS,
+    out.append(record(f"{name}:solver", s["error"], MAX_EXCESS,
                     f"ring-mesh solution: max |(B - E) - U| / peak with U = rho f E-bar / (1 - rho f) = {s['U']:.4g} "
                     f"(light 0), {s['rings']} rings ({s['patches']} patches), peak B {s['peak']:.4g}"))
     ps = c.get("ps")
     if ps is None:
-        out.append(_rec(f"{name}:photometric_stereo", float("inf"), 1.0,
+        out.append(record(f"{name}:photometric_stereo", float("inf"), 1.0,
                         "no photometric-stereo method given (pbrbench validate passes Woodham's least squares)",
                         passed=False))
         return out
@@ -245,7 +249,7 @@ def _case_records(c: dict) -> list[Record]:
     d = np.zeros(3)
     d[2] = rho * c["beta"] * delta / (1 - rho * f)
     r = np.abs(ps["rec"] - ps["cf"])[u] / (zz * ps["se"][u] + d + 1e-300)
-    out.append(_rec(f"{name}:photometric_stereo", float(r.max()), 1.0,
+    out.append(record(f"{name}:photometric_stereo", float(r.max()), 1.0,
                     f"cell means of h = pi albedo normal vs rho (N + beta a), max |diff| / (z se + d) over {int(u.sum())} "
                     f"cells x 3 components (z = {zz:.2f}; se propagated through the least-squares solve; axial mesh "
                     f"allowance {d[2]:.2g}); mean angle between the cells' recovered and closed-form h {ps['angle_mean']:.3f} "
@@ -253,7 +257,7 @@ def _case_records(c: dict) -> list[Record]:
                     f"recovered / closed-form albedo {ps['albedo_ratio_median']:.4f}"))
     db = c["beta"] * delta / (1 - rho * f)
     zb = _z(1)
-    out.append(_rec(f"{name}:ps_beta", abs(ps["beta_fit"] - c["beta"]) / (zb * ps["beta_se"] + db + 1e-300), 1.0,
+    out.append(record(f"{name}:ps_beta", abs(ps["beta_fit"] - c["beta"]) / (zb * ps["beta_se"] + db + 1e-300), 1.0,
                     f"beta fitted to the recovered h (h = c1 N + c2 a): {ps['beta_fit']:.4f} +- {ps['beta_se']:.1g} vs the "
                     f"closed form {c['beta']:.4f} (mesh allowance {db:.2g}, z = {zb:.2f}); fitted albedo "
                     f"{ps['rho_fit']:.4f} vs {rho:g}"))

@@ -12,7 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array
-from pbrbench.shading.patches import Patches
+from pbrbench.radiosity.patches import Patches
 
 __all__ = ["patch_index_image", "radiosity_image"]
 

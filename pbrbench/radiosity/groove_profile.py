@@ -17,7 +17,7 @@ Two solvers:
   exactly from Hottel's crossed strings (:func:`pbrbench.shading.form_factors.strip_form_factors_2d`);
   only the piecewise-constant approximation of ``B`` across the faces remains.
 * ``method="3d"`` -- a groove of finite ``length`` cut into ``n`` x ``n_along`` rectangles per
-  face, with the 3-D form factors of :func:`pbrbench.shading.form_factor_matrix.form_factor_matrix`
+  face, with the 3-D form factors of :func:`pbrbench.radiosity.form_factor_matrix.form_factor_matrix`
   (no visibility test is needed: the faces of a V see each other wholly); the profile is read at
   the middle row.  As ``length / w`` grows it tends to the 2-D profile (the missing ends subtend
   a kernel integral of order ``(w / length)^3``).
@@ -39,10 +39,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_int, check_number, check_positive
-from pbrbench.shading.form_factor_matrix import form_factor_matrix
+from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
+from pbrbench.radiosity.patches import Patches, make_patches
+from pbrbench.radiosity.solver import solve_radiosity
 from pbrbench.shading.form_factors import strip_form_factors_2d
-from pbrbench.shading.patches import Patches, make_patches
-from pbrbench.shading.radiosity import solve_radiosity
 
 __all__ = ["GrooveProfile", "groove_profile", "groove_segments", "groove_patches", "groove_lit_fraction"]
 

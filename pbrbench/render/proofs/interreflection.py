@@ -7,15 +7,15 @@ format of :class:`pbrbench.tasks.base.JobResult` plots) to ``figures`` when it i
 * ``radiosity_groove``: the right-angled groove of ``groove_reflex_parallel`` and
   ``groove_reflex_bisector`` (and grooves of other angles, :func:`groove_spec`) for each albedo of
   the sweep: the rendered radiance across the groove against the radiosity solution of the same
-  geometry (:func:`pbrbench.shading.groove_profile.groove_patches`, exact form factors without
+  geometry (:func:`pbrbench.radiosity.groove_profile.groove_patches`, exact form factors without
   visibility -- nothing in a V hides anything -- and the direct term with shadow rays).
 * ``radiosity_room``: ``room_black`` and ``room_white`` (perspective camera) against the model of
-  :func:`pbrbench.shading.forward_models.scene_model` (visibility sampled by rays).
-* ``radiosity_cap`` (:mod:`pbrbench.render.proofs_cap`): concave spherical caps (``ps_cap`` and other half-angles,
+  :func:`pbrbench.radiosity.forward_models.scene_model` (visibility sampled by rays).
+* ``radiosity_cap`` (:mod:`pbrbench.render.proofs.cap`): concave spherical caps (``ps_cap`` and other half-angles,
   :func:`cap_spec`): the render against the closed form ``B = rho E0 (N + beta a) . S``, the ring
   mesh's solution against it, and photometric stereo on the rendered per-light radiance against the
   closed-form bias (normals ``(N + beta a) / |N + beta a|``, albedo ``rho |N + beta a|``).
-* ``gain_curve`` (:mod:`pbrbench.render.proofs_gain`): the kernel integral of :mod:`pbrbench.shading.gain_curve` against Mitsuba's
+* ``gain_curve`` (:mod:`pbrbench.render.proofs.gain`): the kernel integral of :mod:`pbrbench.shading.gain_curve` against Mitsuba's
   irradiance meter above a plane of sinusoidal radiance (chapter Fig 1.19).
 
 How render and model are compared (groove and room): pixels are grouped into *cells* (the strips
@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbrbench.render.proofs import Record, _gt, _rec
+from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.render.quality import get_quality
 from pbrbench.scene.spec import SceneSpec
 
@@ -190,7 +190,7 @@ def _pixel_selection(spec, patches, W: int, H: int, *, whole: bool = True) -> np
     A patch counts as seen whole when its sub-samples cover >= 95 % of its projected area
     (``whole=False``: no such test, for the strips across a groove, which run beyond the film and
     which nothing hides)."""
-    from pbrbench.shading.radiosity_image import patch_index_image
+    from pbrbench.radiosity.image import patch_index_image
 
     S = SUPERSAMPLE
     fine = patch_index_image(spec, patches, (W * S, H * S))
@@ -324,8 +324,8 @@ def _records(name: str, c: Comparison, what: str, cells_are: str = "the patches 
     tail = (f"{int(u.sum())} cells of >= {MIN_PIXELS} pixels ({int(cells.count[u].sum())} pixels; {cells_are}); noise z*se <= {100 * noise:.2f} % of the peak (z = {c.z:.2f}), discretisation "
             f"d <= {100 * disc:.2f} % of the peak (levels {', '.join(_level(x) for x in c.levels)}: {what}); largest "
             f"|render - model| {100 * c.diff[where] / c.peak:.2f} % of the peak {c.peak:.4g}")
-    return [_rec(name, c.agreement(), 1.0, f"max |render - model| / (z se + d + {FLOOR:g} peak) over the cells; " + tail),
-            _rec(f"{name}:peak", c.excess(), MAX_EXCESS,
+    return [record(name, c.agreement(), 1.0, f"max |render - model| / (z se + d + {FLOOR:g} peak) over the cells; " + tail),
+            record(f"{name}:peak", c.excess(), MAX_EXCESS,
                  "max (|render - model| - z se)_+ / peak (the difference beyond the noise, after refinement); " + tail)]
 
 
@@ -336,13 +336,13 @@ GROOVE_LEVELS = (4, 8, 16, 32)   # strips per face (up to W / 4: strips about 2 
 def groove_case(spec: SceneSpec, quality: str, cache) -> dict:
     """Render and model of one groove: the comparison on strips across the groove (each strip
     the whole visible length of the groove), the local model and the strips' centres."""
-    from pbrbench.shading.form_factor_matrix import form_factor_matrix
-    from pbrbench.shading.groove_profile import groove_patches, groove_segments
-    from pbrbench.shading.radiosity import direct_radiosity, solve_radiosity
-    from pbrbench.shading.radiosity_image import patch_index_image, radiosity_image
+    from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
+    from pbrbench.radiosity.groove_profile import groove_patches, groove_segments
+    from pbrbench.radiosity.image import patch_index_image, radiosity_image
+    from pbrbench.radiosity.solver import direct_radiosity, solve_radiosity
 
     opening, w, length = groove_geometry(spec)
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     H, W = gt["radiance"].shape[:2]
     local = {}
 
@@ -409,19 +409,19 @@ ROOM_ROW = 0.72   # the section: the image row at this fraction of the height (t
 
 
 def room_case(spec: SceneSpec, quality: str, cache) -> dict:
-    """Render and model of one room (:func:`pbrbench.shading.forward_models.scene_model` at 6 and
+    """Render and model of one room (:func:`pbrbench.radiosity.forward_models.scene_model` at 6 and
     12 patches across the view with 3 and 4 shadow-ray points per side, from 96 px at 12 and 24
     with 4 and 6; cells = the patches of a mesh of 3, from 96 px 6, patches across the view), and
     the section: a band of rows about :data:`ROOM_ROW` down the image."""
-    from pbrbench.shading.forward_models import (
+    from pbrbench.radiosity.forward_models import (
         model_patches,
         predict_radiance,
         scene_model,
         view_width,
     )
-    from pbrbench.shading.radiosity_image import patch_index_image
+    from pbrbench.radiosity.image import patch_index_image
 
-    gt = _gt(spec, quality, cache)
+    gt = ground_truth_of(spec, quality, cache)
     H, W = gt["radiance"].shape[:2]
     # (patches across the view, shadow-ray points per side on patches and the light): both refined,
     # so that d also measures the sampled visibility of the area light; the patches halve each level.

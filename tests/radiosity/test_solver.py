@@ -5,9 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrbench.scene.spec import SceneSpec
-from pbrbench.shading.irradiance import polygon_irradiance
-from pbrbench.shading.radiosity import (
+from pbrbench.radiosity.solver import (
     direct_radiosity,
     form_factor_matrix,
     make_patches,
@@ -17,6 +15,8 @@ from pbrbench.shading.radiosity import (
     solve_radiosity,
     solve_scene,
 )
+from pbrbench.scene.spec import SceneSpec
+from pbrbench.shading.irradiance import polygon_irradiance
 
 
 def scene(shapes, lights=({"type": "directional", "direction": [0, 0, 1]},), **kw):
@@ -387,8 +387,8 @@ def test_modules_import_numpy_only():
     import subprocess
     import sys
 
-    code = ("import sys, json, pbrbench.shading.radiosity, pbrbench.shading.concave_cap, "
-            "pbrbench.shading.groove_profile, pbrbench.shading.gain_curve; "
+    code = ("import sys, json, pbrbench.radiosity.solver, pbrbench.radiosity.concave_cap, "
+            "pbrbench.radiosity.groove_profile, pbrbench.shading.gain_curve; "
             "print(json.dumps(sorted(m for m in sys.modules if m.split('.')[0] in "
             "('mitsuba', 'drjit', 'pydantic', 'skimage', 'matplotlib'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
@@ -396,13 +396,13 @@ def test_modules_import_numpy_only():
 
 
 def test_public_functions_are_documented_with_references():
-    import pbrbench.shading.concave_cap as cap
-    import pbrbench.shading.form_factor_matrix as ffm
+    import pbrbench.radiosity.concave_cap as cap
+    import pbrbench.radiosity.form_factor_matrix as ffm
+    import pbrbench.radiosity.groove_profile as gp
+    import pbrbench.radiosity.image as rim
+    import pbrbench.radiosity.solver as rad
     import pbrbench.shading.form_factors as ff
     import pbrbench.shading.gain_curve as gc
-    import pbrbench.shading.groove_profile as gp
-    import pbrbench.shading.radiosity as rad
-    import pbrbench.shading.radiosity_image as rim
 
     for mod in (rad, rim, ff, ffm, cap, gp, gc):
         assert "References" in mod.__doc__ or "Reference:" in mod.__doc__, mod.__name__
