@@ -36,6 +36,7 @@ from pbrbench.checks import (
     check_method,
     check_tolerance,
 )
+from pbrbench.infer._scale import max_abs, pow2_exponent
 
 __all__ = ["solve_gradient_field", "METHODS"]
 
@@ -245,6 +246,14 @@ def solve_gradient_field(gx, gy, *, mask=None, wx=None, wy=None, tol: float = 1e
     if maxiter is not None:
         maxiter = check_int(maxiter, "maxiter", 1)
 
+    e = pow2_exponent(max(max_abs(gx, m), max_abs(gy, m)))
+    if e:   # extreme magnitudes: solve the exactly rescaled field (the solution is linear in g)
+        z = np.ldexp(solve_gradient_field(np.ldexp(gx, -e), np.ldexp(gy, -e), mask=m, wx=wx, wy=wy, tol=tol,
+                                          maxiter=maxiter, method=method), e)
+        if not np.isfinite(z).all():
+            raise ValueError("gx/gy: the height overflows float64 at this gradient scale; divide gx and gy by a "
+                             "constant (the solution scales with them)")
+        return z
     full = bool(m.all())
     unit = all(w is None or np.all(w == 1.0) for w in (wx, wy))
     if method == "dct" and not (full and unit):

@@ -467,3 +467,32 @@ if __name__ == "__main__":
     c = measure(verbose="-v" in sys.argv)
     total = sum(c.values())
     print(f"{total} calls: " + ", ".join(f"{k} {v}" for k, v in sorted(c.items())))
+
+
+# ------------------------------------------------------------------------- extreme magnitudes
+SCALES = (1e300, 1e-300)
+SCALED_ARGS = {"images", "image", "profile", "p", "q", "z", "gx", "gy", "lights", "light", "intensities", "normals"}
+
+
+def scale_cases() -> list[Case]:
+    """Every float data argument of every public function scaled by 1e300 and by 1e-300 (the
+    rest unchanged).  Many methods are scale-covariant, so a finite answer is legitimate
+    (``may_accept``); a refusal must be a clear ValueError; NaN never."""
+    import pbrbench.infer as I
+
+    B = _base()
+    out: list[Case] = []
+    for fname, (pos, kw, _opts) in _specs(B).items():
+        fn = getattr(I, fname)
+        for aname in [a for a in list(pos) + list(kw) if a in SCALED_ARGS]:
+            base = pos.get(aname, kw.get(aname))
+            if base is None or np.asarray(base).dtype.kind != "f":
+                continue
+            for s in SCALES:
+                p2, k2 = dict(pos), dict(kw)
+                (p2 if aname in pos else k2)[aname] = np.asarray(base) * s
+
+                def call(fn=fn, p2=p2, k2=k2):
+                    return fn(*p2.values(), **k2)
+                out.append(Case(fname, aname, f"scaled_{s:g}", call, may_accept=True))
+    return out

@@ -104,3 +104,38 @@ def test_merge_never_returns_nan_for_a_valid_response():
     flat = np.concatenate([np.full(100, 1e-3), np.linspace(1e-3, 1.0, 156)])[:, None]  # flat at the bottom
     out = merge_hdr(Z, [0.25, 1.0, 4.0], CameraResponse(flat, 256, "x"))
     assert np.isfinite(out).all()
+
+
+SCALE_CASES = __import__("tests.corpus.infer_fuzz", fromlist=["scale_cases"]).scale_cases()
+
+
+@pytest.mark.parametrize("case", SCALE_CASES, ids=[c.id for c in SCALE_CASES])
+def test_extreme_magnitudes_give_a_finite_answer_or_a_clear_refusal(case):
+    outcome, msg = classify(case)
+    assert outcome in ("accepted", "clear"), f"{case.id}: {outcome}: {msg}"
+
+
+@pytest.mark.parametrize("scale", [1e300, 1e-300])
+def test_scale_covariant_methods_answer_correctly_at_extreme_scales(scale):
+    """Normals, light directions and gradients do not depend on the scale; albedo and height scale."""
+    import pbrbench.infer as I
+    from tests.corpus.infer_fuzz import _base
+
+    B = _base()
+    ref = I.photometric_stereo(B["ps"], B["lights"], mask=B["mask"])
+    for fn in (I.photometric_stereo_woodham1980, I.photometric_stereo_ikehata2012_l1, I.photometric_stereo_naive_lstsq):
+        r0 = fn(B["ps"], B["lights"], mask=B["mask"])
+        r = fn(B["ps"] * scale, B["lights"], mask=B["mask"])
+        assert np.allclose(r.normals, r0.normals, atol=1e-9) and np.array_equal(r.valid, r0.valid)
+        assert np.allclose(r.albedo / scale, r0.albedo, rtol=1e-9, atol=0)
+    r = I.photometric_stereo(B["ps"], B["lights"] * 1e-3, mask=B["mask"])
+    assert np.allclose(r.normals, ref.normals, atol=1e-9)
+    z0 = I.solve_gradient_field(B["p"], B["q"], mask=B["mask"])
+    z = I.solve_gradient_field(B["p"] * scale, B["q"] * scale, mask=B["mask"])
+    assert np.allclose(z / scale, z0, rtol=1e-6, atol=1e-9 * np.abs(z0).max())
+    p0, q0, v0 = I.normals_to_gradients(B["normals"], B["mask"])
+    p, q, v = I.normals_to_gradients(B["normals"] * scale, B["mask"])
+    assert np.array_equal(v, v0) and np.allclose(p, p0) and np.allclose(q, q0)
+    e0 = I.light_from_shading_lee_rosenfeld1985(B["shade"], B["mask"])
+    e = I.light_from_shading_lee_rosenfeld1985(B["shade"] * scale, B["mask"])
+    assert np.allclose(e.direction, e0.direction) and np.isclose(e.albedo / scale, e0.albedo)

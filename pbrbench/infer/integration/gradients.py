@@ -40,6 +40,7 @@ from pbrbench.checks import (
     check_number,
     check_pixel_size,
 )
+from pbrbench.infer._scale import robust_norm
 
 __all__ = ["normals_to_gradients", "normals_from_gradients", "gradients_from_height", "integrability_residual"]
 
@@ -89,7 +90,11 @@ def normals_to_gradients(normals, mask=None, *, min_nz: float = 1e-3):
         check_finite(n, "normals", where=m)
     min_nz = check_number(min_nz, "min_nz", lo=0.0, lo_open=True, hi=1.0, hi_open=True)
     nn = np.where(m[..., None], n, 0.0)
-    norm = np.linalg.norm(nn, axis=-1)
+    with np.errstate(over="ignore", under="ignore"):
+        norm = np.linalg.norm(nn, axis=-1)
+    off = m & ~((norm > 1e-150) & (norm < 1e150))   # need not be unit: norms that under/overflow
+    if off.any():
+        norm = np.where(off, robust_norm(nn), norm)
     nz = np.divide(nn[..., 2], norm, out=np.zeros(shape), where=norm > 0)
     valid = m & (nz > min_nz)
     safe = np.where(valid, nn[..., 2], 1.0)

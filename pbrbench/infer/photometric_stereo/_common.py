@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_int, check_mask, check_number
+from pbrbench.infer._scale import max_abs, pow2_exponent, robust_norm
 
 __all__ = [
     "PhotometricStereoResult",
@@ -63,7 +64,7 @@ def check_lights(lights, k: int) -> np.ndarray:
     check_finite(s, "lights")
     if k < 3:
         raise ValueError(f"lights: photometric stereo needs at least 3 lights, got {k}; add images under more sources")
-    norms = np.linalg.norm(s, axis=1)
+    norms = robust_norm(s, axis=1)   # lengths are intensities: 1e-300 is small, not zero
     if np.any(norms <= 0):
         bad = np.flatnonzero(norms <= 0).tolist()
         raise ValueError(f"lights: light(s) {bad} are zero vectors; give each light a direction toward the source")
@@ -167,6 +168,7 @@ class Problem:
     thr: float
     sat: float | None
     min_lights: int
+    scale: tuple[int, int] = (0, 0)   # (albedo, residual) powers of two undone by finish()
 
 
 def prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights) -> Problem:
@@ -190,10 +192,19 @@ def prepare(images, lights, mask, intensities, shadow_threshold, saturation, min
                          f"pass min_lights between 3 and {k}")
     flat_m = m.ravel()
     full = bool(flat_m.all())
+    sat = None if saturation is None else float(saturation)
+    # magnitudes near 1e+-300 overflow the normal equations: rescale exactly by powers of two
+    # (normals unchanged; albedo and residual scaled back in finish); ordinary input untouched
+    ei = pow2_exponent(max_abs(img, np.broadcast_to(m[None, :, :, None], img.shape)))
+    ee = pow2_exponent(float(e.max()))
+    es = pow2_exponent(float(robust_norm(s, axis=1).max()))
+    if ei or ee or es:
+        img, e, s = np.ldexp(img, -ei), np.ldexp(e, -ee), np.ldexp(s, -es)
+        sat = None if sat is None else float(np.ldexp(sat, -ei))
     return Problem(img=img, colour=colour, k=k, h=h, w=w, nc=nc, s=s, s7=outer6(s), m=m, full=full,
                    sel=None if full else np.flatnonzero(flat_m), flat=img.reshape(k, h * w, nc),
                    ein=None if intensities is None else e, thr=thr,
-                   sat=None if saturation is None else float(saturation), min_lights=int(min_lights))
+                   sat=sat, min_lights=int(min_lights), scale=(ei - ee - es, ei - ee))
 
 
 def accumulate(p: Problem, *, used_in=None, keep=False):
@@ -286,6 +297,11 @@ def finish(p: Problem, g, ok, amat, bmat, q) -> PhotometricStereoResult:
         np.divide(num, den, out=alb[c], where=okd)
         sq += q[c] - alb[c] * num
     res = np.sqrt(np.maximum(sq, 0.0) / np.maximum(n_used * nc, 1))
+    if p.scale != (0, 0):
+        alb, res = np.ldexp(alb, p.scale[0]), np.ldexp(res, p.scale[1])
+        if not (np.isfinite(alb).all() and np.isfinite(res).all()):
+            raise ValueError("images/lights: the albedo (image / light length) overflows float64; divide the images "
+                             "by a constant or give lights of ordinary length (the normals do not change)")
     albedo = scatter(p, alb)
     if not p.colour:
         albedo = albedo[..., 0]

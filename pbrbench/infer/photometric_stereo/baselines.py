@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_mask
+from pbrbench.infer._scale import max_abs, pow2_exponent, robust_norm
 from pbrbench.infer.photometric_stereo._common import PhotometricStereoResult, check_lights
 
 __all__ = ["BASELINES", "photometric_stereo_naive_lstsq"]
@@ -59,6 +60,15 @@ def photometric_stereo_naive_lstsq(images, lights, *, mask=None) -> PhotometricS
     s = check_lights(lights, k)
     m = check_mask(mask, (h, w))
     check_finite(img, "images", where=np.broadcast_to(m.reshape((1, h, w) + (1,) * colour), img.shape))
+    ei = pow2_exponent(max_abs(img, np.broadcast_to(m.reshape((1, h, w) + (1,) * colour), img.shape)))
+    es = pow2_exponent(float(robust_norm(s, axis=1).max()))
+    if ei or es:   # 1e+-300 magnitudes: solve exactly rescaled, scale the albedo and residual back
+        r = photometric_stereo_naive_lstsq(np.ldexp(img, -ei), np.ldexp(s, -es), mask=m)
+        alb, res = np.ldexp(r.albedo, ei - es), np.ldexp(r.residual, ei)
+        if not (np.isfinite(alb).all() and np.isfinite(res).all()):
+            raise ValueError("images/lights: the albedo (image / light length) overflows float64; divide the images "
+                             "by a constant or give lights of ordinary length (the normals do not change)")
+        return PhotometricStereoResult(normals=r.normals, albedo=alb, residual=res, n_used=r.n_used, valid=r.valid)
     pinv = np.linalg.pinv(s)
     img3 = img if colour else img[..., None]
     if colour:

@@ -30,6 +30,7 @@ from pbrbench.checks import (
     check_pixel_size,
     check_positive,
 )
+from pbrbench.infer._scale import robust_norm
 from pbrbench.infer.integration import gradients_from_height, integrate_lsq, normals_from_gradients
 
 __all__ = ["SFSResult", "LightEstimate", "integrate_gradients", "occluding_boundary"]
@@ -160,7 +161,7 @@ def _prepare(image, light, albedo, mask, pixel_size):
     if s.shape != (3,):
         raise ValueError(f"light: expected a 3-vector (x, y, z) toward the source, got shape {s.shape}")
     check_finite(s, "light")
-    ns = np.linalg.norm(s)
+    ns = float(robust_norm(s))   # a direction: 1e300 or 1e-300 long is still one
     if ns == 0:
         raise ValueError("light: zero vector; pass a direction toward the source, e.g. (0, 0, 1)")
     s = s / ns

@@ -23,6 +23,7 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from pbrbench.infer._scale import pow2_exponent
 from pbrbench.infer.sfs._common import LightEstimate, _prepare_light_image
 
 __all__ = ["light_from_shading_lee_rosenfeld1985"]
@@ -77,6 +78,10 @@ def light_from_shading_lee_rosenfeld1985(image, mask=None) -> LightEstimate:
     light source coordinate system", Artificial Intelligence 26(2):125-143, 1985.
     """
     img, m, imax = _prepare_light_image(image, mask)
+    e = pow2_exponent(imax)   # the moments of 1e300 / 1e-300 images overflow: solve exactly rescaled
+    if e:
+        est = light_from_shading_lee_rosenfeld1985(np.ldexp(img, -e), m)
+        return LightEstimate(direction=est.direction, albedo=float(np.ldexp(est.albedo, e)), method=est.method)
     inner = ndimage.binary_erosion(m, iterations=2, border_value=0)
     if inner.sum() < 16:
         inner = m
