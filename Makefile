@@ -9,7 +9,7 @@ UV    := $(VENV)/bin/uv
 
 .PHONY: bench test setup lint render clean-venv lock
 
-$(STAMP): pyproject.toml requirements.lock scripts/setup.sh
+$(STAMP): pyproject.toml setup.py requirements.lock scripts/setup.sh
 	VENV=$(VENV) bash scripts/setup.sh
 	touch $(STAMP)
 

@@ -32,7 +32,19 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 
 PACKAGE_DIR = Path(__file__).resolve().parent
-LIBRARY_DIR = PACKAGE_DIR / "scene" / "library"
+
+
+def _library_dir() -> Path:
+    """The shipped scene library: ``scenes/`` of the source checkout this package runs from (an
+    editable install, or the repository on the path), else ``pbrbench/scenes`` of an installed
+    wheel (setup.py maps ``scenes/`` there at build time)."""
+    checkout = PACKAGE_DIR.parent / "scenes"
+    if (PACKAGE_DIR.parent / "pyproject.toml").is_file() and checkout.is_dir():
+        return checkout
+    return PACKAGE_DIR / "scenes"
+
+
+LIBRARY_DIR = _library_dir()
 
 
 def _source_baselines() -> Path | None:

@@ -47,7 +47,7 @@ def _allow_large() -> bool:
 def scenes_dir(directory: str | os.PathLike | None = None) -> Path:
     """Directory of the scene library: ``directory``, else the ``scenes`` setting
     (:class:`pbrbench.settings.Settings`: ``PBRBENCH_SCENES`` or the library shipped in the
-    package, ``pbrbench/scene/library``)."""
+    package, ``scenes/``)."""
     if directory is not None:
         return Path(directory)
     from pbrbench.settings import Settings
@@ -106,7 +106,7 @@ def _tags_for(loc: tuple) -> str:
     unions = {"lights": S.Light, "light_set": S.Light, "shapes": S.Shape, "materials": S.Material, "albedo": S.Texture}
     key = next((p for p in reversed(loc) if isinstance(p, str) and p in unions), None)
     if key is None:
-        return "the documented types (pbrbench/scene/library/README.md)"
+        return "the documented types (scenes/README.md)"
     return ", ".join(repr(_tag_of(m)) for m in _models_in(unions[key]))
 
 
@@ -298,7 +298,7 @@ def parse_file(path: str | Path) -> dict:
         with open(p, "rb") as f:
             return tomllib.load(f)
     except tomllib.TOMLDecodeError as exc:
-        raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see pbrbench/scene/library/README.md)") from None
+        raise SceneError(f"{path}: TOML syntax error: {exc}; fix the file (see scenes/README.md)") from None
     except UnicodeDecodeError:
         raise SceneError(f"{path}: not a UTF-8 text file; scene files are TOML") from None
     except OSError as exc:
