@@ -9,13 +9,20 @@ score, never the run.
 How: one child per process (``python -c`` with a small loop, started on first use and reused
 for every call, so the plugin's imports happen once), talking over its stdin/stdout pipes with
 length-prefixed pickles.  The parent's ``sys.path`` travels with every call, so plugins on paths
-added at run time resolve in the child.  The algorithm travels as a reference where it is importable
-(a module on ``sys.path``, an installed entry point; a plugin file loaded by path is re-loaded
-from that path in the child, once) and by value (cloudpickle) otherwise (closures, lambdas).
-Inputs and outputs are pickled, so the child computes on bit-identical arrays.  What the plugin
-prints goes to stderr (stdout carries the protocol).  On a timeout the child is killed and a
-fresh one starts at the next call.  ``subprocess`` (not ``multiprocessing``) is used because it
-works inside daemonic Dask worker processes too.
+added at run time resolve in the child.  A plugin's entry travels as a reference
+(:class:`pbrbench.plugins.PluginFunction`: its module, or a plugin file's bytes), so the plugin
+is imported in the child only, once; other callables travel by value (cloudpickle).  Inputs and
+outputs are pickled, so the child computes on bit-identical copies, and nothing it does to them
+reaches the other algorithms.  What the plugin prints goes to stderr (stdout carries the
+protocol).  On a timeout the child is killed and a fresh one starts at the next call.
+``subprocess`` (not ``multiprocessing``) is used because it works inside daemonic Dask worker
+processes too.
+
+The time limit is per job where the job runs inside :func:`job_budget` (the runner does): one
+budget for all the calls of an algorithm in the job, and an algorithm that ran past it or whose
+process died is not called again in that job.  The child dies with its parent, even on
+``kill -9``: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` on Linux (when started from the main thread), and
+a watchdog thread that polls the parent's pid everywhere.
 
 Costs: starting the child (an interpreter plus the plugin's imports, once per process) and
 pickling the inputs of each call (milliseconds for a benchmark job).  Built-in methods are never
@@ -25,6 +32,7 @@ isolated: they run in-process, bit for bit as before.
 from __future__ import annotations
 
 import atexit
+import contextlib
 import os
 import pickle
 import selectors
@@ -35,14 +43,26 @@ import sys
 import threading
 import time
 
-__all__ = ["call_isolated", "shutdown", "PluginTimeout", "PluginCrash"]
+__all__ = ["call_isolated", "job_budget", "shutdown", "PluginTimeout", "PluginCrash"]
 
 _HEADER = struct.Struct("<Q")
 
 # The child's main loop.  Each message is (the parent's sys.path, pickled (function reference,
 # args, kwargs)); it answers ("ok", result) or ("err", type name, message).
 _CHILD = r"""
-import os, pickle, struct, sys, warnings
+import os, pickle, struct, sys, threading, time, warnings
+PARENT = int(sys.argv[1])
+if sys.argv[2] == "1" and sys.platform.startswith("linux"):
+    try:                          # killed with the process that started it (kill -9 too)
+        import ctypes
+        ctypes.CDLL(None, use_errno=True).prctl(1, 9)      # PR_SET_PDEATHSIG, SIGKILL
+    except Exception:
+        pass
+def _watch():                     # and wherever prctl is not there: poll the parent
+    while os.getppid() == PARENT:
+        time.sleep(0.25)
+    os._exit(0)
+threading.Thread(target=_watch, daemon=True).start()
 H = struct.Struct("<Q")
 inp = sys.stdin.buffer
 out = os.fdopen(os.dup(1), "wb")
@@ -67,20 +87,6 @@ def send(obj):
     out.write(H.pack(len(data)) + data)
     out.flush()
 def resolve(ref):
-    kind = ref[0]
-    if kind == "path":
-        _, name, path, qual = ref
-        mod = sys.modules.get(name)
-        if mod is None:
-            import importlib.util
-            spec = importlib.util.spec_from_file_location(name, path)
-            mod = importlib.util.module_from_spec(spec)
-            sys.modules[name] = mod
-            spec.loader.exec_module(mod)
-        obj = mod
-        for part in qual.split("."):
-            obj = getattr(obj, part)
-        return obj
     return pickle.loads(ref[1])
 while True:
     msg = read()
@@ -120,23 +126,18 @@ def _dumps(obj) -> bytes:
 
 
 def _reference(fn):
-    """How the child finds ``fn``: ("path", module, file, qualname) for a function of a plugin
-    file loaded by path (the child loads the file itself), else ("pickle", bytes)."""
-    from pbrbench.registry import path_module_file
-
-    base = fn
-    qual = getattr(base, "__qualname__", "")
-    mod = getattr(base, "__module__", None)
-    file = path_module_file(mod) if mod else None
-    if file is not None and "<locals>" not in qual and "<lambda>" not in qual:
-        return ("path", mod, file, qual)
+    """How the child finds ``fn``: ("pickle", bytes).  A plugin's entry is a
+    :class:`pbrbench.plugins.PluginFunction`, pickled as a reference (its source), which loads
+    the plugin in the child."""
     return ("pickle", _dumps(fn))
 
 
 class _Child:
     def __init__(self):
         env = dict(os.environ)
-        self.proc = subprocess.Popen([sys.executable, "-c", _CHILD], stdin=subprocess.PIPE,
+        main = "1" if threading.current_thread() is threading.main_thread() else "0"
+        # PR_SET_PDEATHSIG fires when the starting *thread* ends: set only from the main thread
+        self.proc = subprocess.Popen([sys.executable, "-c", _CHILD, str(os.getpid()), main], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, env=env, close_fds=True)
 
     def alive(self) -> bool:
@@ -216,27 +217,65 @@ def _death(code) -> str:
     return f"exit status {code}"
 
 
-def call_isolated(fn, args=(), kwargs=None, *, time_limit: float | None, name: str = "algorithm"):
+_JOB = threading.local()
+
+
+@contextlib.contextmanager
+def job_budget():
+    """Within this context (one job: its full scoring, replicates and second seed) an isolated
+    algorithm's time limit is shared by all its calls, and one that ran past it or whose process
+    died is not called again (each later call raises the same error at once)."""
+    prev = getattr(_JOB, "state", None)
+    _JOB.state = {"used": {}, "dead": {}}
+    try:
+        yield
+    finally:
+        _JOB.state = prev
+
+
+def call_isolated(fn, args=(), kwargs=None, *, time_limit: float | None, name: str = "algorithm",
+                  budget: bool = True):
     """``fn(*args, **kwargs)`` in the child process, within ``time_limit`` seconds (None: no
-    limit).  Raises :class:`PluginTimeout` past the limit (the child is killed),
+    limit; inside :func:`job_budget`, what is left of it for ``name`` in this job, unless
+    ``budget`` is false).  Raises :class:`PluginTimeout` past the limit (the child is killed),
     :class:`PluginCrash` when the child dies, and the algorithm's own exception type (rebuilt
     as a ``RuntimeError`` subclass when it is not a built-in) when it raises."""
     import builtins
 
     kwargs = dict(kwargs or {})
+    state = getattr(_JOB, "state", None) if budget else None
+    if state is not None and name in state["dead"]:
+        err = state["dead"][name]
+        raise type(err)(str(err))
     with _LOCK:
         ref = _reference(fn)
         child = _child()
+        limit = time_limit
+        if state is not None and time_limit is not None:
+            limit = float(time_limit) - state["used"].get(name, 0.0)
+        t0 = time.monotonic()
         try:
-            reply = child.call(ref, tuple(args), kwargs, time_limit)
+            if limit is not None and limit <= 0:
+                raise PluginTimeout
+            reply = child.call(ref, tuple(args), kwargs, limit)
         except PluginTimeout:
             child.kill()
-            raise PluginTimeout(f"{name} ran past its time limit of {time_limit:g} s; its process was killed "
-                                "(raise the limit with --algorithm-time-limit)") from None
+            per = " for the job" if state is not None else ""
+            err = PluginTimeout(f"{name} ran past its time limit of {time_limit:g} s{per}; its process was killed "
+                                "(raise the limit with --algorithm-time-limit)")
+            if state is not None:
+                state["dead"][name] = err
+            raise err from None
         except PluginCrash:
             child.kill()
             code = child.proc.returncode
-            raise PluginCrash(f"{name}'s process died ({_death(code)})") from None
+            err = PluginCrash(f"{name}'s process died ({_death(code)})")
+            if state is not None:
+                state["dead"][name] = err
+            raise err from None
+        finally:
+            if state is not None:
+                state["used"][name] = state["used"].get(name, 0.0) + time.monotonic() - t0
     if reply[0] == "ok":
         return reply[1]
     _, tname, msg = reply

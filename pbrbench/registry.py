@@ -23,16 +23,19 @@ entry point of the group :data:`ENTRY_POINT_GROUP` and every ``--algorithm`` spe
 ``register(registry)`` function, which receives a :class:`PluginRegistry` and adds entries, or an
 algorithm callable (entry-point name ``TASK:NAME``, or a callable marked with :func:`algorithm`).
 Plugin entries are kind ``plugin``, carry their version (declared, else ``"1"``) and the hash of
-their module's source, frozen when they are loaded, and run in a child process with a time limit
-(:mod:`pbrbench.isolation`), so a plugin that hangs or crashes is scored as failed and the run
-goes on.
+their source (a plugin file's bytes, else its module's source), frozen when they are loaded.  No
+plugin code runs in the benchmark process: a plugin is imported and registered in the isolated
+child, with the load time limit (:mod:`pbrbench.plugins`), and its entries' callables are
+references (:class:`pbrbench.plugins.PluginFunction`) called in that child with the run's time
+limit per job (:mod:`pbrbench.isolation`), so a plugin that hangs, exits or crashes, at import or
+when called, is scored as failed and the run goes on.  With ``time_limit=None`` (``--algorithm-time-limit 0``)
+the plugin is called in this process, on copies of its inputs.
 """
 
 from __future__ import annotations
 
 import functools
 import hashlib
-import importlib
 import inspect
 import os
 import sys
@@ -45,7 +48,7 @@ from pbrbench.errors import UserError
 
 KINDS = ("method", "baseline", "floor", "plugin")
 ENTRY_POINT_GROUP = "pbrbench.algorithms"
-DEFAULT_TIME_LIMIT = 600.0   # seconds per plugin call (one call per job)
+DEFAULT_TIME_LIMIT = 600.0   # seconds per plugin per job (all its calls of the job together)
 
 
 def _unwrap(fn):
@@ -139,10 +142,23 @@ class Algorithm:
 
     def __call__(self, *args, quality=None, **kwargs):
         kw = {**self.options_for(quality), **kwargs}
+        broken = getattr(self.fn, "load_error", None)
+        if broken:                      # a plugin that failed to load: no process to start
+            from pbrbench.plugins import PluginLoadError
+
+            raise PluginLoadError(broken)
         if self.time_limit is not None:
             from pbrbench.isolation import call_isolated
 
             return call_isolated(self.fn, args, kw, time_limit=self.time_limit, name=self.name)
+        if self.kind == "plugin":       # in-process: the plugin gets copies, the other algorithms' inputs stay
+            import copy
+
+            args, kw = copy.deepcopy((args, kw))
+            try:
+                return self.fn(*args, **kw)
+            except SystemExit as e:
+                raise RuntimeError(f"{self.name} called sys.exit({e.code!r}); the run goes on") from None
         return self.fn(*args, **kw)
 
     def __reduce__(self):  # MappingProxyType does not pickle (Dask ships entries to workers)
@@ -271,13 +287,16 @@ class PluginRegistry:
     :meth:`add` (or the :meth:`algorithm` decorator); ``tasks`` lists the tasks of this run.
 
     Entries for a task that is not part of the run are ignored (so one package can serve every
-    task).  Every entry is kind ``plugin`` with the plugin's origin, its source hash frozen now,
-    and the run's time limit."""
+    task); an entry for a task that pbrbench does not have (not in ``known``, when given) is
+    recorded in ``unknown`` (a mistyped name, reported in one line).  Every entry is kind
+    ``plugin`` with the plugin's origin, its source hash frozen now, and the run's time limit."""
 
     def __init__(self, registry: Registry, tasks: Iterable[str], *, origin: str, time_limit: float | None,
-                 strict: bool = True):
+                 strict: bool = True, known: Iterable[str] = ()):
         self._registry = registry
         self.tasks = tuple(tasks)
+        self.known = tuple(known)
+        self.unknown: list[str] = []
         self._origin = origin
         self._time_limit = time_limit
         self._strict = strict
@@ -301,6 +320,8 @@ class PluginRegistry:
                             conditions=tuple(conditions) if conditions is not None else None,
                             description=description, origin=self._origin, interface=interface, figures=figures)
         if alg.task not in self.tasks:
+            if self.known and alg.task not in self.known:
+                self.unknown.append(f"{alg.name!r} is registered for task {alg.task!r}")
             self.skipped.append(f"{alg.name} (task {alg.task!r} is not in this run)")
             return None
         if alg.version is None:
@@ -323,46 +344,8 @@ class PluginRegistry:
         return deco
 
 
-def _load_path_module(path: Path):
-    path = path.expanduser().resolve()
-    if not path.is_file():
-        raise UserError(f"{path}: no such plugin file")
-    digest = hashlib.sha256(str(path).encode()).hexdigest()[:10]
-    stem = "".join(c if c.isalnum() else "_" for c in path.stem)
-    name = f"pbrbench_plugin_{stem}_{digest}"
-    if name in sys.modules:
-        return sys.modules[name]
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[name] = mod
-    try:
-        spec.loader.exec_module(mod)
-    except Exception as e:
-        del sys.modules[name]
-        raise UserError(f"{path}: the plugin file failed to load ({type(e).__name__}: {' '.join(str(e).split())})") from None
-    _PATH_MODULES[name] = str(path)
-    return mod
-
-
 def is_path(module: str) -> bool:
     return module.endswith(".py") or "/" in module or os.sep in module
-
-
-def load_module(module: str):
-    """A plugin module: a dotted module importable from ``sys.path``, or a path to a ``.py``
-    file (loaded alone, under a name derived from its path).  ``UserError`` when it cannot be
-    loaded."""
-    if is_path(module):
-        return _load_path_module(Path(module))
-    try:
-        return importlib.import_module(module)
-    except ImportError as e:
-        raise UserError(f"plugin module {module!r} cannot be imported ({e}); put its folder on PYTHONPATH "
-                        "or give a path to a .py file") from None
-    except Exception as e:
-        raise UserError(f"plugin module {module!r} failed to load ({type(e).__name__}: {' '.join(str(e).split())})") from None
 
 
 def parse_algorithm_spec(spec: str) -> tuple[str, str, str, str | None]:
@@ -393,76 +376,142 @@ def normalize_algorithm_spec(spec: str) -> str:
     return f"{task}={module}:{func}" + (f":{name}" if name else "")
 
 
-def _attr(mod, dotted: str, where: str):
-    obj = mod
-    for part in dotted.split("."):
-        try:
-            obj = getattr(obj, part)
-        except AttributeError:
-            names = ", ".join(n for n in dir(mod) if not n.startswith("_") and callable(getattr(mod, n)))
-            raise UserError(f"{where}: {getattr(mod, '__name__', mod)} has no {dotted!r} (it has {names or 'no callables'})") from None
-    if not callable(obj):
-        raise UserError(f"{where}: {dotted!r} is not callable")
-    return obj
-
-
-def add_algorithm_spec(registry: Registry, spec: str, tasks: Iterable[str], *, time_limit: float | None) -> Algorithm:
-    """Load one ``--algorithm`` spec into ``registry`` (``UserError`` when it cannot be used)."""
-    task, module, func, name = parse_algorithm_spec(spec)
-    tasks = tuple(tasks)
-    if task not in tasks:
-        raise UserError(f"--algorithm {spec!r}: task {task!r} is not part of this run (tasks: {', '.join(tasks)}); "
-                        "add it to --tasks")
-    mod = load_module(module)
-    fn = _attr(mod, func, f"--algorithm {spec!r}")
-    name = name or getattr(fn, "pbrbench_name", None) or func.rsplit(".", 1)[-1]
-    reg = PluginRegistry(registry, tasks, origin=f"--algorithm {normalize_algorithm_spec(spec)}", time_limit=time_limit)
-    try:
-        return reg.add(task, name, fn, version=getattr(fn, "pbrbench_version", None),
-                       options=getattr(fn, "pbrbench_options", None))
-    except ValueError as e:
-        raise UserError(f"--algorithm {spec!r}: {e}; add :NAME to the spec") from None
 
 
 def _one_line(e: BaseException) -> str:
     return f"{type(e).__name__}: {' '.join(str(e).split())}"[:300]
 
 
+def _known_tasks(tasks: Iterable[str]) -> tuple[str, ...]:
+    from pbrbench.tasks import task_names
+
+    return tuple(dict.fromkeys([*task_names(), *tasks]))
+
+
+def _probe(src, tasks, known, origin: str) -> dict:
+    """:func:`pbrbench.plugins.probe` in the isolated child, within the load time limit; a hang,
+    an exit or a crash is ``{"error": "load", "message": ...}``."""
+    from pbrbench.isolation import PluginCrash, PluginTimeout, call_isolated
+    from pbrbench.plugins import load_time_limit, probe
+
+    limit = load_time_limit()
+    try:
+        return call_isolated(probe, (src, tuple(tasks), tuple(known)), time_limit=limit, name=origin,
+                             budget=False)
+    except PluginTimeout:
+        return {"error": "load", "message": f"it did not finish importing and registering within {limit:g} s "
+                                            "(its process was killed; PBRBENCH_PLUGIN_LOAD_LIMIT sets the limit)"}
+    except PluginCrash as e:
+        return {"error": "load", "message": f"its process died while importing and registering it "
+                                            f"({str(e).rpartition('(')[2].rstrip(')')})"}
+    except Exception as e:  # noqa: BLE001 - e.g. options that cannot be sent back
+        return {"error": "load", "message": _one_line(e)}
+
+
+def _entries(src, info: dict, *, origin: str, tasks, time_limit: float | None) -> list[Algorithm]:
+    from pbrbench.plugins import PluginFunction
+
+    out = []
+    for d in info["entries"]:
+        fn = PluginFunction(src, d["task"], d["name"], tasks)
+        out.append(Algorithm(d["name"], d["task"], fn, kind="plugin", version=d["version"] or "1",
+                             options=d["options"], conditions=d["conditions"], description=d["description"],
+                             origin=origin, interface=d["interface"], figures=d["figures"],
+                             fingerprint=src.digest or d["fingerprint"], time_limit=time_limit))
+    return out
+
+
+def _unknown_line(origin: str, unknown: list[str], known) -> str:
+    return (f"{origin}: {'; '.join(unknown)} -- not a pbrbench task (tasks: {', '.join(known)}); "
+            "fix the task name")
+
+
+def add_algorithm_spec(registry: Registry, spec: str, tasks: Iterable[str], *, time_limit: float | None,
+                       log=None) -> Algorithm:
+    """Load one ``--algorithm`` spec into ``registry`` and return its entry.
+
+    The plugin is imported and registered only in the isolated child
+    (:mod:`pbrbench.plugins`).  A spec that cannot be used (a bad form, a task that is not run or
+    does not exist, a missing file, module or function, a name taken) raises ``UserError``; a
+    plugin that raises, exits, crashes or hangs while it is imported is added all the same, as an
+    entry whose every call fails with that reason (one line to ``log``), and the run goes on.
+    """
+    from pbrbench.plugins import PluginFunction, PluginSource, file_source
+
+    task, module, func, name = parse_algorithm_spec(spec)
+    tasks = tuple(tasks)
+    known = _known_tasks(tasks)
+    where = f"--algorithm {spec!r}"
+    if task not in known:
+        raise UserError(f"{where}: {task!r} is not a pbrbench task (tasks: {', '.join(known)}); fix the task name")
+    if task not in tasks:
+        raise UserError(f"{where}: task {task!r} is not part of this run (tasks: {', '.join(tasks)}); add it to --tasks")
+    if is_path(module):
+        path = Path(module).expanduser().resolve()
+        if not path.is_file():
+            raise UserError(f"{path}: no such plugin file")
+        src = file_source(str(path), func, f"{task}:{name or ''}")
+    else:
+        src = PluginSource("module", module, func, f"{task}:{name or ''}")
+    origin = f"--algorithm {normalize_algorithm_spec(spec)}"
+    info = _probe(src, tasks, known, origin)
+    err = info.get("error")
+    if err in ("missing", "attr"):
+        raise UserError(f"{where}: {info['message']}")
+    if err:
+        msg = f"{origin}: the plugin failed to load ({info['message']}); it is scored as failed"
+        if log is not None:
+            log(f"plugin failed: {msg}")
+        shown = name or func.rsplit(".", 1)[-1]
+        alg = Algorithm(shown, task, PluginFunction(src, task, shown, tasks, error=msg),
+                        kind="plugin", version="unloaded", origin=origin,
+                        fingerprint=src.digest or hashlib.sha256(module.encode()).hexdigest()[:10],
+                        time_limit=time_limit)
+    else:
+        (alg,) = _entries(src, info, origin=origin, tasks=tasks, time_limit=time_limit)
+    if (alg.task, alg.name) in registry:
+        old = registry.get(alg.task, alg.name)
+        raise UserError(f"{where}: algorithm {alg.name!r} of task {alg.task!r} is already registered ({old.origin}); "
+                        "give it another name; add :NAME to the spec")
+    return registry.add(alg)
+
+
 def add_entry_points(registry: Registry, tasks: Iterable[str], *, time_limit: float | None,
                      group: str = ENTRY_POINT_GROUP) -> list[str]:
-    """Load every installed entry point of ``group`` into ``registry``.  Returns one line per
-    entry point that could not be used (it is skipped; the run goes on)."""
+    """Add every installed entry point of ``group`` to ``registry``.
+
+    Names and versions come from the entry point's metadata and from a probe in the isolated
+    child (:mod:`pbrbench.plugins`), never from importing the plugin here.  Returns one line per
+    entry point that could not be used (skipped, all its entries with it; the run goes on) or
+    that names a task pbrbench does not have.
+    """
     from importlib.metadata import entry_points
 
+    from pbrbench.plugins import PluginSource
+
     tasks = tuple(tasks)
+    known = _known_tasks(tasks)
     problems = []
     for ep in entry_points(group=group):
         dist = getattr(ep, "dist", None)
         origin = f"entry point {ep.name} = {ep.value}" + (f" ({dist.name} {dist.version})" if dist is not None else "")
-        try:
-            obj = ep.load()
-        except Exception as e:  # noqa: BLE001 - a broken plugin package must not stop the run
-            problems.append(f"{origin}: failed to load ({_one_line(e)})")
+        src = PluginSource("entry", ep.value, "", ep.name)
+        info = _probe(src, tasks, known, origin)
+        if info.get("error"):
+            what = "failed to load" if info["error"] != "attr" else "cannot be used"
+            problems.append(f"{origin}: {what} ({info['message']})")
             continue
-        reg = PluginRegistry(registry, tasks, origin=origin, time_limit=time_limit)
-        try:
-            if ":" in ep.name:                       # "TASK:NAME" = "module:callable"
-                task, _, name = ep.name.partition(":")
-                reg.add(task, name, obj, version=getattr(obj, "pbrbench_version", None),
-                        options=getattr(obj, "pbrbench_options", None))
-            elif hasattr(obj, "pbrbench_task"):      # a callable marked with @algorithm
-                reg.add(obj.pbrbench_task, obj.pbrbench_name, obj, version=obj.pbrbench_version,
-                        options=obj.pbrbench_options)
-            elif callable(obj):                      # register(registry)
-                obj(reg)
-            else:
-                problems.append(f"{origin}: {type(obj).__name__} is not callable; point it at register(registry) "
-                                "or at an algorithm")
-                continue
-        except Exception as e:  # noqa: BLE001
-            problems.append(f"{origin}: {_one_line(e)}")
-            for alg in reg.added:   # all or nothing per entry point
-                registry.remove(alg.task, alg.name)
+        if info["unknown"]:
+            problems.append(_unknown_line(origin, info["unknown"], known))
+        new = _entries(src, info, origin=origin, tasks=tasks, time_limit=time_limit)
+        taken = [a for a in new if (a.task, a.name) in registry]
+        if taken:
+            a = taken[0]
+            problems.append(f"{origin}: algorithm {a.name!r} of task {a.task!r} is already registered "
+                            f"({registry.get(a.task, a.name).origin}); give it another name")
+            continue
+        for a in new:
+            registry.add(a)
     return problems
 
 
@@ -470,15 +519,15 @@ def plugin_registry(tasks: Mapping, specs: Iterable[str] = (), *, entry_points: 
                     time_limit: float | None = DEFAULT_TIME_LIMIT, log=None) -> Registry:
     """The built-in algorithms of ``tasks`` plus the installed plugins (entry points of
     :data:`ENTRY_POINT_GROUP`, unless ``entry_points`` is false) plus the ``--algorithm``
-    ``specs``.  ``time_limit``: seconds per plugin call (None: plugins run in-process, without
-    a limit).  A broken entry point is skipped with a message to ``log``; a bad spec raises
-    ``UserError``."""
+    ``specs``.  ``time_limit``: seconds per plugin per job (None: plugins run in-process, without
+    a limit).  No plugin code runs in this process while they are added (:mod:`pbrbench.plugins`).
+    A broken entry point is skipped with a message to ``log``; a bad spec raises ``UserError``."""
     reg = builtin_registry(tasks)
     names = list(tasks)
     if entry_points:
         for msg in add_entry_points(reg, names, time_limit=time_limit):
             if log is not None:
-                log(f"plugin skipped: {msg}")
+                log(f"plugin skipped: {msg}" if "not a pbrbench task" not in msg else f"plugin: {msg}")
     for spec in specs:
-        add_algorithm_spec(reg, spec, names, time_limit=time_limit)
+        add_algorithm_spec(reg, spec, names, time_limit=time_limit, log=log)
     return reg

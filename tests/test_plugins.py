@@ -26,7 +26,6 @@ from pbrbench.registry import (
     algorithm,
     parse_algorithm_spec,
     plugin_registry,
-    source_hash,
 )
 from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 from tests.fakes import FakeSource, ps_gt, ps_job, settings_for
@@ -147,10 +146,24 @@ def test_unusable_specs_are_one_line_user_errors(tmp_path, plugin_file):
         plugin_registry(tasks, ["photometric_stereo=no_such_module_xyz:solve"], entry_points=False)
     with pytest.raises(UserError, match="already registered.*add :NAME"):
         plugin_registry(tasks, [f"photometric_stereo={plugin_file}:solve:woodham1980"], entry_points=False)
+    with pytest.raises(UserError, match="'photometric_sterio' is not a pbrbench task.*photometric_stereo"):
+        plugin_registry(tasks, [f"photometric_sterio={plugin_file}:solve"], entry_points=False)
+
+
+def test_a_plugin_that_fails_at_import_is_scored_as_failed_and_never_runs_here(tmp_path):
     broken = tmp_path / "broken.py"
-    broken.write_text("import numpy\nraise RuntimeError('broken at import')\n")
-    with pytest.raises(UserError, match="failed to load.*broken at import"):
-        plugin_registry(tasks, [f"photometric_stereo={broken}:f"], entry_points=False)
+    broken.write_text("import numpy\nimport sys\nsys.modules['pbrbench'].BROKEN = 1\n"
+                      "raise RuntimeError('broken at import')\n")
+    logs = []
+    reg = plugin_registry({"photometric_stereo": TinyPS()}, [f"photometric_stereo={broken}:f"], entry_points=False,
+                          time_limit=30.0, log=logs.append)
+    import pbrbench
+
+    assert not hasattr(pbrbench, "BROKEN")          # imported in the child only
+    assert len(logs) == 1 and "failed to load (RuntimeError: broken at import)" in logs[0] and str(broken) in logs[0]
+    alg = reg.get("photometric_stereo", "f")
+    with pytest.raises(RuntimeError, match="broken at import"):
+        alg(np.zeros((3, 2, 2)), np.eye(3))
 
 
 # ----------------------------------------------------------------------------- scored in a run
@@ -168,9 +181,9 @@ def test_a_py_file_and_a_dotted_module_are_scored_beside_the_builtins(tmp_path, 
         assert sc[(name, "normal_mean_deg")] == pytest.approx(builtin, abs=0.01)   # normals rounded to 1e-4
         assert sc[(name, "coverage")] == 1.0 and (name, "failed") not in sc
     versions = {s["algorithm"]: s["algorithm_version"] for s in o.scores}
-    from pbrbench.registry import _load_path_module
+    import hashlib
 
-    file_hash = source_hash(Algorithm("x", "t", _load_path_module(plugin_file).solve).fn)
+    file_hash = hashlib.sha256(plugin_file.read_bytes()).hexdigest()[:10]   # the file's bytes
     assert versions["solve"] == f"3+{file_hash}" and versions["dotted"].startswith("0.9+")
     info = o.task_info["photometric_stereo"]
     assert info["algorithm_kinds"]["solve"] == "plugin"
