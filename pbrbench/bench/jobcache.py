@@ -3,8 +3,9 @@
 A job's result (scores with their uncertainties, figures) is a pure function of its inputs: the
 job (task, scene, condition, parameters), the seed and quality profile, the ground truths it reads
 (their render-cache keys: scene content, quality, variant, Mitsuba version, ground-truth format),
-the algorithms it runs (names, options and versions: declared version plus a hash of their source)
-and the code that scores them.  The fingerprint covers all of these; for the code it hashes every
+the algorithms it runs (names, options and versions: declared version plus a hash of their source;
+their time limit and whether they run isolated or in-process, since an algorithm's failure, a
+timeout, is a cached result too) and the code that scores them.  The fingerprint covers all of these; for the code it hashes every
 source file of the installed pbrbench package, so any change to pbrbench re-runs every job (a
 user's plugin is covered by its own version hash, a task defined outside pbrbench by the hash of
 its module), and it includes the NumPy and SciPy versions.
@@ -46,8 +47,11 @@ def code_hash() -> str:
 def fingerprint(job, *, seed: int, quality, gt_keys: list[str], algorithms, task=None, uncertainty=True) -> str:
     from pbrbench.registry import source_hash
 
+    # the time limit and isolation mode too: a failure (a timeout) is cached, and is not replayed
+    # under another limit
     algs = [(a.name, a.kind, a.interface, a.full_version, sorted((str(k), repr(v)) for k, v in a.options.items()),
-             a.conditions) for a in algorithms]
+             a.conditions, "in-process" if a.time_limit is None else f"isolated:{float(a.time_limit)!r}")
+            for a in algorithms]
     blob = json.dumps({"format": FORMAT, "job": job.key, "extra": list(job.extra_scenes), "seed": int(seed),
                        "quality": getattr(quality, "name", str(quality)), "gts": list(gt_keys), "algorithms": algs,
                        "code": code_hash(), "task": source_hash(type(task)) if task is not None else "",

@@ -55,7 +55,7 @@ class RunConfig:
     algorithms: list[str] = field(default_factory=list)   # --algorithm TASK=MODULE:FUNCTION[:NAME]
     job_cache: bool = True         # reuse finished jobs whose inputs and code are unchanged
     uncertainty: bool = True       # score the delete-one-group replicates (standard errors, bias)
-    algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin call; None: in-process
+    algorithm_time_limit: float | None = DEFAULT_TIME_LIMIT   # seconds per plugin per job; None: in-process
     entry_points: bool = True                     # load the installed plugins (entry points)
 
     def recorded(self) -> dict:
@@ -106,6 +106,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
     """Run one job, its replicates (the standard errors: :mod:`pbrbench.bench.uncertainty`) and
     draw its figures (in this process or on a worker); never raises."""
     from pbrbench.bench.uncertainty import attach, replicate_scores
+    from pbrbench.isolation import job_budget
     from pbrbench.report.figures import job_figures
 
     t0 = time.perf_counter()
@@ -113,7 +114,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
     try:
         src = worker_source(source)
         _form_factor_cache(src)
-        with RENDER_LOCK, blas_threads(job_threads()):
+        with RENDER_LOCK, blas_threads(job_threads()), job_budget():   # a plugin's time limit: per job
             gts = {n: src.load(specs[n]) for n in (job.scene, *job.extra_scenes)}
             for g in gts.values():
                 g.reads.clear()      # what this job reads (a replicate that changes none of it is not rescored)
@@ -183,6 +184,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     lifecycle.preflight(settings)  # an unwritable --out: one line, and no junk run in the store
     store = Store(settings.store_path())
     prior_done: set[str] = set()
+    prior_plugins: dict | None = None
     if cfg.resume:
         run_id = store.resolve_run(cfg.resume)
         run = lifecycle.check_resumable(store, run_id)
@@ -194,6 +196,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         cfg.entry_points = rc.get("entry_points", cfg.entry_points)
         settings = settings.with_(variant=settings.variant or rc.get("variant"))
         prior_done = store.done_jobs(run_id)
+        prior_plugins = rc.get("plugin_versions")
     quality = get_quality(cfg.quality)
     if tasks is None:
         tasks = load_tasks(cfg.tasks)
@@ -205,11 +208,14 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
                                    time_limit=cfg.algorithm_time_limit, log=log)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
                                          scenes=settings.scenes, render_seed=cfg.render_seed)
+    plugins = plugin_versions(registry, tasks)
+    if prior_plugins is not None:
+        check_plugins_unchanged(run_id, prior_plugins, plugins)
     variant = source.resolve_variant()
     info = task_info(tasks, registry)
     from pbrbench.lock import locked_versions
 
-    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info,
+    config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info, plugin_versions=plugins,
                   quality_profile=quality.render_key(), environment={"lock": locked_versions()})
     jobs = plan(tasks, quality)          # planned (and the scene files loaded) before the run exists,
     todo = [j for j in jobs if j.key not in prior_done]  # so a bad scene file leaves no junk run
@@ -315,6 +321,22 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     outcome.wall_seconds = time.perf_counter() - t_start
     store.close()
     return outcome
+
+
+def plugin_versions(registry, tasks) -> dict[str, str]:
+    """``{"TASK/NAME": version}`` of the plugins of ``tasks`` (stored with the run)."""
+    return {f"{a.task}/{a.name}": a.full_version for t in tasks for a in registry.for_task(t, kinds=["plugin"])}
+
+
+def check_plugins_unchanged(run_id: str, before: dict, now: dict) -> None:
+    """``UserError`` (one line) when a plugin changed, appeared or went since the run began: a
+    resumed run would mix two versions of it."""
+    changed = [f"{k} ({before[k]} -> {now[k]})" for k in before if k in now and before[k] != now[k]]
+    changed += [f"{k} (gone)" for k in before if k not in now]
+    changed += [f"{k} (new)" for k in now if k not in before]
+    if changed:
+        raise UserError(f"--resume {run_id}: plugin {', '.join(changed)} changed since the run began; put the "
+                        "plugin back as it was, or start a new run (without --resume)")
 
 
 def _cache(settings):

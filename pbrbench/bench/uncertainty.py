@@ -51,6 +51,16 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
     out: dict[str, dict] = {}
     if full is not None and not isinstance(full, dict):
         full = _values(full)
+    algorithms = list(algorithms)
+
+    def _drop_failed(vals):
+        # a plugin that failed (timed out, crashed, raised) is not called again for this job: its
+        # failure has no standard error, and a hung plugin would cost its time limit again
+        bad = {a for (_, a, m), v in vals.items() if m == "failed" and v == 1.0}
+        algorithms[:] = [a for a in algorithms if not (a.kind == "plugin" and a.name in bad)]
+
+    if full is not None:
+        _drop_failed(full)
     groups = {getattr(g, "groups", 0) for g in gts.values()}
     if all(getattr(g, "has_replicates", False) for g in gts.values()) and len(groups) == 1:
         (G,) = groups
@@ -61,6 +71,7 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
             else:
                 loo = {n: g.replicate(i) for n, g in gts.items()}
                 vals = _values(task.run_job(job, loo, seed=seed, algorithms=algorithms, quality=quality).scores)
+                _drop_failed(vals)
             for k, v in vals.items():
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
