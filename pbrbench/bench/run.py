@@ -137,7 +137,7 @@ def _form_factor_cache(source) -> None:
     """The radiosity models' form factors live beside the render cache (``form_factors/``)."""
     root = getattr(getattr(source, "cache", None), "root", None)
     if root is not None:
-        from pbrbench.shading.forward_models import set_disk_cache
+        from pbrbench.radiosity.forward_models import set_disk_cache
 
         set_disk_cache(Path(root) / "form_factors")
 
