@@ -18,6 +18,25 @@ wants them.  Differing f-stops, gains or ND filters in an HDRShop list are folde
 equivalent exposure and said
 so in ``notes`` (relative to the first line: ``t (f0 / f)^2 10^((gain - gain0) / 10)``, 3 dB of
 gain doubling the exposure).
+
+Checks (a malformed folder raises :class:`~pbrbench.errors.UserError` with one line naming the
+file and the fix; data that may still be valid gives a
+:class:`~pbrbench.datasets.files.DataWarning`, also listed in ``notes``):
+
+* refused: a missing, empty (0 bytes), damaged or oversized image; float pixels or integers
+  other than 8 and 16 bits; **mixed bit depths** (an 8-bit and a 16-bit file: their levels
+  mean different things, so the bracket cannot be calibrated as one camera); images of
+  different sizes or channel counts, or more than 4 channels; a time that is not a positive
+  finite number; two images sharing a time; fewer than 2 exposures with information (the
+  others entirely saturated or black); **exposure times out of order with the
+  images' brightness**: a longer exposure darker than a shorter one at most of the pixels
+  well exposed in both (10 points more pixels darker than brighter), which is what a
+  reversed or shuffled times file gives;
+* warned: an image saturated or black everywhere (it adds nothing); more than 5 % of
+  the pixels saturated even in the shortest exposure (their radiance is only a lower bound)
+  or black even in the longest; a longer exposure darker at more pixels than it is brighter,
+  but by less than the refusal margin (the scene may have changed); 16-bit files whose
+  values never exceed 255 (read as 8-bit levels).
 """
 
 from __future__ import annotations
@@ -29,7 +48,14 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.datasets.files import IMAGE_SUFFIXES, find, read_lines
+from pbrbench.datasets.files import (
+    IMAGE_SUFFIXES,
+    MAX_STACK_BYTES,
+    find,
+    load_image,
+    read_lines,
+    warn,
+)
 from pbrbench.errors import UserError
 
 __all__ = ["Bracket", "load_bracket", "parse_time"]
@@ -59,7 +85,7 @@ def parse_time(text: str, where: str) -> float:
     except (ValueError, ZeroDivisionError):
         raise UserError(f"{where}: {text!r} is not an exposure time (write 0.004 or 1/250)") from None
     if not v > 0 or not np.isfinite(v):
-        raise UserError(f"{where}: exposure time {text!r} must be positive")
+        raise UserError(f"{where}: exposure time {text!r} must be positive and finite (in seconds)")
     return v
 
 
@@ -151,9 +177,8 @@ def _exif_time(path: Path) -> float | None:
 
 def load_bracket(folder) -> Bracket:
     """Load an exposure bracket (see the module docstring); ``UserError`` with one line when the
-    folder is malformed (no images, no times, mismatched sizes, duplicate times, float images)."""
-    from pbrbench.io import read_image
-
+    folder is malformed (no images, no times, mismatched sizes, duplicate times, float images,
+    mixed bit depths, times out of order with the brightness, no informative exposure)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder}: no such folder")
@@ -187,19 +212,90 @@ def load_bracket(folder) -> Bracket:
     times = np.asarray(times, float)[order]
     if np.any(np.diff(times) <= 0):
         dup = times[np.flatnonzero(np.diff(times) <= 0)[0]]
-        raise UserError(f"{folder}: two images share the exposure time {dup:g} s; each exposure must differ")
-    try:
-        arrays = [np.asarray(read_image(f)) for f in files]
-    except ValueError as e:
-        raise UserError(str(e)) from None
-    for a, f in zip(arrays, files, strict=True):
-        if a.dtype.kind not in "ui":
-            raise UserError(f"{f}: {a.dtype} pixels; a bracket needs the camera's integer values (8 or 16 bits)")
-        if a.shape != arrays[0].shape:
-            raise UserError(f"{f}: shape {a.shape}, {files[0].name} is {arrays[0].shape}; the images must align")
+        where = tf or hs or ol or folder
+        raise UserError(f"{where}: two images share the exposure time {dup:g} s; give each exposure its own time "
+                        "(or drop the repeated image)")
+    arrays = []
+    for f in files:
+        a = load_image(f, "bracket image")
+        if a.dtype not in (np.uint8, np.uint16):
+            raise UserError(f"{f}: {a.dtype} pixels; a bracket needs the camera's unsigned integer values (8 or "
+                            "16 bits): save the exposures as 8- or 16-bit PNG / TIFF / JPEG")
+        if arrays and a.dtype != arrays[0].dtype:
+            raise UserError(f"{f}: {8 * a.dtype.itemsize}-bit, {files[0].name} is {8 * arrays[0].dtype.itemsize}-bit; "
+                            "the exposures of one bracket must share one bit depth: save them all alike")
+        if arrays and a.shape != arrays[0].shape:
+            raise UserError(f"{f}: shape {a.shape}, {files[0].name} is {arrays[0].shape}; the images must align "
+                            "(same size and channels)")
+        if a.ndim == 3 and a.shape[2] > 4:
+            raise UserError(f"{f}: {a.shape[2]} channels; give grey, RGB or RGBA images")
+        arrays.append(a)
+        if len(arrays) * a.size * 8 > MAX_STACK_BYTES:
+            raise UserError(f"{folder}: the images are too large to merge ({len(files)} x {a.shape}); downsample them")
     stack = np.stack(arrays)
     if stack.ndim == 4 and stack.shape[-1] == 4:
         notes.append("alpha channel dropped")
         stack = stack[..., :3]
-    dtype = np.uint16 if stack.max() > 255 else np.uint8
-    return Bracket(stack.astype(dtype), times, files, source, notes)
+    elif stack.ndim == 4 and stack.shape[-1] == 2:
+        notes.append("alpha channel dropped")
+        stack = stack[..., 0]
+    elif stack.ndim == 4 and stack.shape[-1] == 1:
+        stack = stack[..., 0]
+    if stack.dtype == np.uint16 and stack.max() <= 255:
+        _note(notes, f"{files[0].parent}: 16-bit files whose values never exceed 255; read as 8-bit levels")
+        stack = stack.astype(np.uint8)
+    _check_content(stack, times, files, source, notes)
+    return Bracket(stack, times, files, source, notes)
+
+
+def _note(notes: list, msg: str) -> None:
+    notes.append(msg)
+    warn(msg)
+
+
+def _check_content(stack: np.ndarray, times, files, source: str, notes: list) -> None:
+    """Refuse a bracket without information or with times out of order with the brightness;
+    warn about exposures that add nothing (see the module docstring)."""
+    top = 255 if stack.dtype == np.uint8 else 65535
+    k = len(stack)
+    flat = stack.reshape(k, -1, stack.shape[-1] if stack.ndim == 4 else 1)
+    step = max(1, flat.shape[1] // 200_000)       # a sample of the pixels bounds the time
+    z = flat[:, ::step].astype(np.float64)
+    zmax, zmin = z.max(axis=-1), z.min(axis=-1)    # (K, N): the brightest / darkest channel
+    informative = []
+    for i, f in enumerate(files):
+        if zmin[i].min() >= top:
+            _note(notes, f"{f}: every pixel is saturated ({top}); this exposure adds nothing: drop it")
+        elif zmax[i].max() <= 0:
+            _note(notes, f"{f}: every pixel is 0 (black); this exposure adds nothing: drop it")
+        else:
+            informative.append(i)
+    if len(informative) < 2:
+        raise UserError(f"{files[0].parent}: {len(informative)} exposure(s) with information (the others are "
+                        "saturated or black everywhere); a bracket needs at least 2: shoot shorter and "
+                        "longer exposures")
+    sat_all = float((zmax >= top).all(axis=0).mean())
+    dark_all = float((zmax <= 0).all(axis=0).mean())
+    if sat_all > 0.05:
+        _note(notes, f"{files[0]} (the shortest exposure): {sat_all:.0%} of the pixels are saturated in every "
+                     "exposure; their radiance is only a lower bound: add a shorter exposure")
+    if dark_all > 0.05:
+        _note(notes, f"{files[-1]} (the longest exposure): {dark_all:.0%} of the pixels are 0 in every exposure; "
+                     "add a longer exposure")
+    # brightness must grow with the exposure time at pixels well exposed in both images
+    good = (zmax < top) & (zmin > 0)
+    for a, b in zip(informative[:-1], informative[1:], strict=True):
+        both = good[a] & good[b]
+        if both.sum() < 16:
+            continue
+        za, zb = z[a][both].mean(-1), z[b][both].mean(-1)
+        darker, brighter = float((zb < za).mean()), float((zb > za).mean())
+        if darker <= brighter:
+            continue
+        msg = (f"{source}: {files[b].name} ({times[b]:g} s) is darker than {files[a].name} ({times[a]:g} s) at "
+               f"{darker:.0%} of the pixels (brighter at {brighter:.0%}): the exposure times are out of order with "
+               "the images' brightness")
+        if darker > brighter + 0.10:
+            raise UserError(msg + "; check that each time belongs to its image (a bare list of times follows the "
+                                  "sorted file names)")
+        _note(notes, msg + " (a little: the scene may have changed)")

@@ -23,6 +23,17 @@ shading ``shading``; the score is
 each LMSE with 20 x 20 windows every 10 pixels (:func:`pbrbench.metrics.lightness.lmse`, which
 is the published ``local_error``), over the mask.  The published table is the mean over the 16
 objects of ``SET1 + SET2`` (:data:`EVALUATED`; apple, pear, phone and potato were left out).
+
+Checks (a malformed folder raises :class:`~pbrbench.errors.UserError` with one line naming the
+file and the fix; data that may still be valid gives a
+:class:`~pbrbench.datasets.files.DataWarning` and is kept):
+
+* refused: a missing, empty, damaged, pickled or oversized image; NaN or infinite pixels or
+  mask values; images of different sizes; ``diffuse`` or ``reflectance`` without 3 channels;
+  a mask with no pixel inside; ``diffuse``, ``reflectance`` or ``shading`` 0 everywhere inside
+  the mask (nothing to decompose or to score against); ``diffuse`` saturated (the top level of
+  an 8- or 16-bit file) at more than half of the mask;
+* warned: ``diffuse`` saturated at more than 5 % of the mask; negative pixel values.
 """
 
 from __future__ import annotations
@@ -32,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.datasets.files import find_stem, read_mask, to_float
+from pbrbench.datasets.files import find_stem, load_image, read_mask, to_float, warn
 from pbrbench.errors import UserError
 
 __all__ = ["MITObject", "load_mit_object", "mit_objects", "is_mit", "mit_scores", "EVALUATED", "WINDOW", "STEP"]
@@ -79,19 +90,25 @@ def mit_objects(root) -> list[Path]:
             if is_mit(d)]
 
 
-def _read(folder: Path, stem: str, required: bool = True):
-    from pbrbench.io import read_image
-
+def _read(folder: Path, stem: str, required: bool = True, top: list | None = None):
     f = find_stem(folder, stem, (".png", ".tif", ".tiff", ".exr", ".npy"))
     if f is None:
         if required:
             raise UserError(f"{folder}: no {stem}.png (an MIT Intrinsic Images object folder has diffuse.png, "
                             "reflectance.png, shading.png and mask.png)")
         return None, None
+    raw = load_image(f, f"{stem} image")
+    if top is not None:
+        top.append(np.iinfo(raw.dtype).max if raw.dtype.kind in "ui" else None)
     try:
-        return to_float(read_image(f), f), f
+        a = to_float(raw, f)
     except ValueError as e:
-        raise UserError(str(e)) from None
+        raise UserError(f"{e}: save it as an 8- or 16-bit PNG") from None
+    if a.ndim == 3 and a.shape[2] > 4:
+        raise UserError(f"{f}: {a.shape[2]} channels; give a grey or RGB image")
+    if (a < 0).any():
+        warn(f"{f}: negative pixel values; clip them to 0 if they are noise")
+    return a, f
 
 
 def load_mit_object(folder, *, lights: bool = False) -> MITObject:
@@ -100,7 +117,8 @@ def load_mit_object(folder, *, lights: bool = False) -> MITObject:
     folder = Path(folder)
     if not folder.is_dir():
         raise UserError(f"{folder}: no such folder")
-    diffuse, fd = _read(folder, "diffuse")
+    top: list = []
+    diffuse, fd = _read(folder, "diffuse", top=top)
     refl, fr = _read(folder, "reflectance")
     shad, fs = _read(folder, "shading")
     for a, f in ((diffuse, fd), (refl, fr)):
@@ -121,16 +139,38 @@ def load_mit_object(folder, *, lights: bool = False) -> MITObject:
         mask = read_mask(mf, (h, w)) if mf is not None else np.ones((h, w), bool)
     except ValueError as e:
         raise UserError(str(e)) from None
+    for a, f in ((diffuse, fd), (refl, fr), (shad, fs)):
+        if not (a[mask] != 0).any():
+            raise UserError(f"{f}: 0 everywhere inside the mask; give the object's image (check the file and mask.png)")
+    if top[0] is not None:
+        sat = float((diffuse[mask] >= 1.0).any(axis=-1).mean())   # the top level scales to exactly 1
+        if sat > 0.5:
+            raise UserError(f"{fd}: saturated at {sat:.0%} of the mask; give an unsaturated (linear, raw) image")
+        if sat > 0.05:
+            warn(f"{fd}: saturated at {sat:.0%} of the mask; the decomposition there is unreliable")
     extra = {}
     for stem in ("original", "specular"):
-        a, _ = _read(folder, stem, required=False)
+        a, f = _read(folder, stem, required=False)
         if a is not None:
+            _same_size(a, f, h, w)
             extra[stem] = a
     if lights:
-        stack = [a for a, _ in (_read(folder, f"light{k:02d}", required=False) for k in range(1, 11)) if a is not None]
+        stack = []
+        for k in range(1, 11):
+            a, f = _read(folder, f"light{k:02d}", required=False)
+            if a is not None:
+                _same_size(a, f, h, w)
+                if stack and a.shape != stack[0].shape:
+                    raise UserError(f"{f}: shape {a.shape}, the first light image is {stack[0].shape}; give them alike")
+                stack.append(a)
         if stack:
             extra["lights"] = np.stack(stack)
     return MITObject(folder.name, folder, diffuse, refl, shad, mask, extra)
+
+
+def _same_size(a, f, h, w):
+    if a.shape[:2] != (h, w):
+        raise UserError(f"{f}: {a.shape[0]} x {a.shape[1]} pixels, diffuse.png is {h} x {w}; give images of one size")
 
 
 def mit_scores(reflectance, shading, obj: MITObject) -> dict:

@@ -160,3 +160,28 @@ def test_evaluate_on_diligent_folders_reports_mean_and_median_angular_error(tmp_
     assert main(["evaluate", "photometric_stereo", str(tmp_path / "pred"), "--no-report",
                  "--store", str(tmp_path / "h2.sqlite")]) == 1
     assert "no DiLiGenT object folder" in capsys.readouterr().err
+
+
+def test_data_warnings_reach_the_evaluation_notes_and_result_json(tmp_path, capsys):
+    """Light directions of length 2 are normalised with a warning: a note of `evaluate`, a
+    `pbrbench: warning:` line and an entry of result.json for `infer`; the normals stay right."""
+    from pbrbench.bench.realdata import evaluate_folder
+
+    d = tmp_path / "ballPNG"
+    diligent_object(d)
+    (d / "light_directions.txt").write_text("\n".join(" ".join(f"{2 * v:.8f}" for v in r) for r in DIRS) + "\n")
+    ev = evaluate_folder("photometric_stereo", d, methods=("woodham1980",), store_run=False, report=False)
+    assert any("not of unit length" in n and "light_directions.txt" in n for n in ev.notes), ev.notes
+    assert ev.rows[0]["scores"]["normal_mean_deg"] < 0.05
+    assert main(["infer", "photometric-stereo", str(d), "--out", str(tmp_path / "out")]) == 0
+    err = capsys.readouterr().err
+    assert "pbrbench: warning:" in err and "not of unit length" in err
+    res = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert len(res["warnings"]) == 1 and "light_directions.txt" in res["warnings"][0]
+
+
+def test_indices_out_of_range_are_a_one_line_error(tmp_path):
+    diligent_object(tmp_path / "a")
+    with pytest.raises(UserError, match="indices: 40 is not a light of the 12"):
+        load_diligent(tmp_path / "a", indices=[0, 1, 40])
+    assert len(load_diligent(tmp_path / "a", indices=range(2, 12)).files) == 10
