@@ -15,7 +15,9 @@ The algorithms: the task's built-in methods and baselines (``methods`` selects s
 ``predictions``, an external program's files per object (``PDIR/<object>/normals.npy`` or
 ``.exr`` / ``.mat`` / ``.txt``; ``PDIR/<object>/reflectance.*`` and ``shading.*``).  Scores go
 into the results store as a run of quality ``real`` and condition ``real`` (report, history and
-compare read it); a failing algorithm is one failed score with its message.
+compare read it); a failing algorithm is one failed score with its message.  A malformed
+object folder stops the evaluation with the loader's one-line error naming the file; the
+loaders' warnings (data that may be wrong) become notes of the evaluation.
 """
 
 from __future__ import annotations
@@ -49,6 +51,24 @@ def _call(alg, *args, check, **kwargs):
         return check(out), seconds, None
     except Exception as e:  # noqa: BLE001 - a user's algorithm may raise anything
         return None, time.perf_counter() - t0, _one_line(e)
+
+
+def _load(loader, path, notes: list, **kw):
+    """``loader(path, **kw)`` with its data warnings (one line each) added to ``notes``; a
+    malformed folder raises the loader's one-line ``UserError``."""
+    import warnings
+
+    from pbrbench.datasets.files import DataWarning
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DataWarning)
+        obj = loader(path, **kw)
+    for w in caught:
+        if issubclass(w.category, DataWarning):
+            notes.append(f"warning: {' '.join(str(w.message).split())}")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return obj
 
 
 def _scores(job, scene_hash, alg, values: dict, seconds: float) -> list:
@@ -253,7 +273,7 @@ def _diligent(objs, root, methods, specs, predictions, name, settings, store_run
     ev = Evaluation(TASK.name, f"DiLiGenT-layout data in {root}", headline=("normal_mean_deg", "normal_median_deg"))
     jobs = []
     for path in objs:
-        obj = load_diligent(path, log=log)
+        obj = _load(load_diligent, path, ev.notes, log=log)
         if obj.normals is None:
             ev.notes.append(f"{obj.name}: no ground-truth normals (Normal_gt.mat / .txt); not scored")
             continue
@@ -318,7 +338,7 @@ def _mit(objs, root, methods, specs, predictions, name, settings, store_run, rep
         return a
 
     for path in objs:
-        obj = load_mit_object(path)
+        obj = _load(load_mit_object, path, ev.notes)
         if reader is not None:
             reader.current = obj
         job = Job(TASK.name, f"mit:{obj.name}", CONDITION)

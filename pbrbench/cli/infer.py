@@ -8,13 +8,20 @@
   MIT-Intrinsic-layout object folder; writes reflectance and shading (EXR + PNG);
 * ``hdr DIR --out OUT``: DIR is an exposure bracket (images plus a times file, or EXIF times);
   writes the merged radiance (EXR + tone-mapped PNG) and the inverse response (CSV).
+
+A malformed input (a missing, empty or damaged file, non-numeric text, NaN values, mismatched
+sizes, a saturated or empty stack, exposure times out of order with the brightness) is one
+line naming the file and the fix, exit code 1.  Data that loads but may be wrong is a
+``pbrbench: warning: ...`` line, also listed under ``warnings`` in ``result.json``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import sys
 import time
+import warnings
 from pathlib import Path
 
 from pbrbench.errors import UserError
@@ -93,6 +100,30 @@ def _out(path) -> Path:
     return p
 
 
+@contextlib.contextmanager
+def _data_warnings(seen: list):
+    """Print each data warning of the loaders as one ``pbrbench: warning:`` line; collect them."""
+    from pbrbench.datasets.files import DataWarning
+
+    def show(message, category, *_args, **_kw):
+        if issubclass(category, DataWarning):
+            text = " ".join(str(message).split())
+            if text not in seen:
+                seen.append(text)
+                _log(f"warning: {text}")
+        else:
+            old(message, category, *_args, **_kw)
+
+    old = warnings.showwarning
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", DataWarning)
+        warnings.showwarning = show
+        try:
+            yield seen
+        finally:
+            warnings.showwarning = old
+
+
 class _Stages:
     """One progress line per stage (``pbrbench: photometric stereo 2/3: normals``)."""
 
@@ -108,7 +139,6 @@ class _Stages:
 # ----------------------------------------------------------------------------- photometric stereo
 def _ps_input(d: Path, drop: int):
     """(name, grey images (K, H, W), lights (K, 3), mask, true normals or None, pixel size)."""
-    import numpy as np
 
     from pbrbench.datasets import is_diligent, load_diligent
 
@@ -119,16 +149,67 @@ def _ps_input(d: Path, drop: int):
         sel = slice(drop, None)
         return obj.name, obj.grey[sel], obj.lights[sel], obj.mask, obj.normals, 1.0, "DiLiGenT layout"
     if (d / "gt.json").is_file() and (d / "gt.exr").is_file():
-        from pbrbench import io
-
-        r = io.load_render(d)
-        if r.light_vectors is None:
-            raise UserError(f"{d}/gt.json: the scene has no light set (no per-light images)")
-        imgs = r.light_stack("radiance").astype(np.float64).mean(axis=-1)[drop:]   # grey, as the benchmark
-        return (r.meta.get("scene", d.name), imgs, r.light_vectors[drop:], r.mask,
-                r["normals"].astype(float), float(r.camera.get("pixel_size", 1.0)), "pbrbench render")
+        return _ps_render(d, drop)
     raise UserError(f"{d}: neither a DiLiGenT object folder (light_directions.txt, 001.png ..., mask.png) nor a "
                     "`pbrbench render --out` folder (gt.exr, gt.json)")
+
+
+def _ps_render(d: Path, drop: int):
+    """The inputs of a ``pbrbench render --out`` folder, every fault a line naming the file."""
+    import numpy as np
+
+    from pbrbench import io
+    from pbrbench.datasets.files import quiet_stderr
+
+    js, exr = d / "gt.json", d / "gt.exr"
+    again = "render it again with `pbrbench render SCENE --out DIR`"
+    try:
+        meta = json.loads(js.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as e:
+        raise UserError(f"{js}: not valid JSON ({' '.join(str(e).split())[:120]}); {again}") from None
+    if not isinstance(meta, dict):
+        raise UserError(f"{js}: a JSON {type(meta).__name__}, not an object; {again}")
+    try:
+        if exr.stat().st_size == 0:
+            raise UserError(f"{exr}: an empty file (0 bytes); {again}")
+        with quiet_stderr():
+            r = io.load_render(d)
+    except UserError:
+        raise
+    except MemoryError:
+        raise UserError(f"{exr}: too large to load; {again} at a lower resolution") from None
+    except Exception as e:  # noqa: BLE001 - the EXR decoder raises anything on a damaged file
+        raise UserError(f"{exr}: not a readable render ({' '.join(str(e).split())[:120]}); {again}") from None
+    try:
+        lv = meta.get("light_vectors")
+        if lv is None:
+            raise UserError(f"{js}: the scene has no light set (no per-light images); render a scene with a light set")
+        lights = np.asarray(lv, dtype=np.float64)
+        k = len(r.lights) or sum(1 for n in r.keys() if n.startswith("light") and n.endswith(".radiance"))
+        if lights.ndim != 2 or lights.shape[1] != 3 or not np.isfinite(lights).all():
+            raise UserError(f"{js}: light_vectors must be a list of finite (x, y, z) vectors, got shape {lights.shape}; "
+                            f"{again}")
+        if len(lights) != k:
+            raise UserError(f"{js}: {len(lights)} light_vectors for {k} per-light images in {exr.name}; {again}")
+        imgs = r.light_stack("radiance").astype(np.float64)
+        normals = np.asarray(r["normals"], np.float64)
+        mask = r.mask
+        px = float(r.camera.get("pixel_size", 1.0))
+    except UserError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, IndexError) as e:
+        raise UserError(f"{d}: gt.json and gt.exr do not match ({' '.join(str(e).split())[:120]}); {again}") from None
+    if imgs.ndim != 4 or imgs.shape[1:3] != mask.shape or normals.shape != mask.shape + (3,):
+        raise UserError(f"{exr}: per-light images {imgs.shape}, mask {mask.shape}, normals {normals.shape} disagree; "
+                        f"{again}")
+    if not (np.isfinite(px) and px > 0):
+        raise UserError(f"{js}: camera.pixel_size {px!r} must be a positive number; {again}")
+    if not np.isfinite(imgs[:, mask]).all():
+        raise UserError(f"{exr}: NaN or infinite radiance inside the mask; {again}")
+    if not mask.any():
+        raise UserError(f"{exr}: the mask is empty (no pure pixel); {again} with the object in view")
+    return (str(meta.get("scene", d.name)), imgs.mean(axis=-1)[drop:], lights[drop:], mask,
+            np.where(np.isfinite(normals), normals, 0.0), px, "pbrbench render")
 
 
 def run_ps(args) -> int:
@@ -142,7 +223,8 @@ def run_ps(args) -> int:
     if args.drop_first < 0:
         raise UserError(f"--drop-first {args.drop_first}: give N >= 0")
     st = _Stages("photometric stereo", ["load", f"normals ({args.method})", f"height ({args.integrate})", "write"])
-    name, imgs, lights, mask, n_true, px, layout = _ps_input(Path(args.dir), args.drop_first)
+    with _data_warnings([]) as seen:
+        name, imgs, lights, mask, n_true, px, layout = _ps_input(Path(args.dir), args.drop_first)
     if len(imgs) < 3:
         raise UserError(f"{args.dir}: {len(imgs)} image(s) after --drop-first; photometric stereo needs 3 or more")
     st.next(f"{len(imgs)} images {imgs.shape[1]}x{imgs.shape[2]} ({layout})")
@@ -172,7 +254,7 @@ def run_ps(args) -> int:
     summary = {"input": str(Path(args.dir).resolve()), "layout": layout, "object": name, "method": args.method,
                "integration": args.integrate, "images": int(len(imgs)), "shape": list(imgs.shape[1:3]),
                "pixel_size": px, "seconds": t_ps, "valid_fraction": float(res.valid[mask].mean()) if mask.any() else 0.0,
-               "frame": "x right, y up, z toward the camera",
+               "frame": "x right, y up, z toward the camera", "warnings": seen,
                "files": ["normals.exr", "normals.png", "albedo.exr", "albedo.png", "height.exr", "height.png", "valid.png"]}
     if n_true is not None:
         sel = mask & (np.linalg.norm(n_true, axis=-1) > 0)
@@ -200,26 +282,27 @@ def _srgb_decode(x):
 def _rx_input(path: Path, gamma: str, mask_file):
     import numpy as np
 
-    from pbrbench import io
     from pbrbench.datasets import is_mit, load_mit_object
-    from pbrbench.datasets.files import read_mask
+    from pbrbench.datasets.files import load_image, read_mask
 
     if path.is_dir():
         if not is_mit(path):
             raise UserError(f"{path}: a folder, but not an MIT Intrinsic Images object (diffuse.png, reflectance.png)")
         obj = load_mit_object(path)
-        mask = read_mask(Path(mask_file), obj.mask.shape) if mask_file else obj.mask
+        try:
+            mask = read_mask(Path(mask_file), obj.mask.shape) if mask_file else obj.mask
+        except ValueError as e:
+            raise UserError(f"--mask {e}") from None
         return obj.name, obj.image, mask, "MIT layout (grey diffuse image, linear)"
-    try:
-        a = np.asarray(io.read_image(path))
-    except ValueError as e:
-        raise UserError(str(e)) from None
-    if a.ndim == 3 and a.shape[2] in (2, 4):
+    a = load_image(path, "image")
+    if a.ndim == 3 and a.shape[2] in (1, 2, 4):
         a = a[..., :-1] if a.shape[2] == 4 else a[..., 0]
-    if a.ndim not in (2, 3):
-        raise UserError(f"{path}: shape {a.shape}; give one (H, W) or (H, W, 3) image")
+    if a.ndim == 3 and a.shape[2] != 3:
+        raise UserError(f"{path}: {a.shape[2]} channels; give a grey or RGB image")
     if a.dtype.kind == "f":
         img, enc = a.astype(float), "float, linear"
+    elif a.dtype.kind == "b":
+        raise UserError(f"{path}: a boolean array; give the image's intensities")
     elif a.dtype.kind in "ui":
         top = 65535.0 if a.dtype.itemsize > 1 else 255.0
         img = a.astype(float) / top
@@ -233,7 +316,7 @@ def _rx_input(path: Path, gamma: str, mask_file):
     try:
         mask = read_mask(Path(mask_file), img.shape[:2]) if mask_file else None
     except ValueError as e:
-        raise UserError(str(e)) from None
+        raise UserError(f"--mask {e}") from None
     return path.stem, img, mask, enc
 
 
@@ -244,7 +327,8 @@ def run_retinex(args) -> int:
     from pbrbench.infer.lightness import lightness
 
     st = _Stages("retinex", ["load", f"decompose ({args.method})", "write"])
-    name, img, mask, enc = _rx_input(Path(args.image), args.gamma, args.mask)
+    with _data_warnings([]) as seen:
+        name, img, mask, enc = _rx_input(Path(args.image), args.gamma, args.mask)
     st.next(f"{img.shape[1]}x{img.shape[0]} ({enc})")
     opts = {"threshold": args.threshold} if args.threshold is not None else {}
     valid = (img > 0) if img.ndim == 2 else (img > 0).all(axis=-1)
@@ -264,7 +348,7 @@ def run_retinex(args) -> int:
     io.write_preview(out / "reflectance.png", refl, percentile=100.0)
     io.write_preview(out / "shading.png", shad)
     (out / "result.json").write_text(json.dumps({"input": str(Path(args.image).resolve()), "encoding": enc,
-                                                 "method": args.method, "options": opts,
+                                                 "method": args.method, "options": opts, "warnings": seen,
                                                  "seconds": time.perf_counter() - t0,
                                                  "files": ["reflectance.exr", "reflectance.png", "shading.exr",
                                                            "shading.png"]}, indent=1))
@@ -282,7 +366,10 @@ def run_hdr(args) -> int:
     from pbrbench.infer.hdr import calibrate_response, merge_hdr
 
     st = _Stages("hdr", ["load", f"calibrate ({args.method})", f"merge ({args.merge})", "write"])
-    b = load_bracket(Path(args.dir))
+    if not Path(args.dir).is_dir():
+        raise UserError(f"{args.dir}: no such folder; give the folder of the bracket's images")
+    with _data_warnings([]) as seen:
+        b = load_bracket(Path(args.dir))
     st.next(f"{len(b.files)} exposures {b.exposure_times.min():g}-{b.exposure_times.max():g} s ({b.source})")
     try:
         resp = calibrate_response(b.images, b.exposure_times, method=args.method)
@@ -301,7 +388,7 @@ def run_hdr(args) -> int:
     (out / "response.csv").write_text(header + "\n" + rows + "\n")
     (out / "result.json").write_text(json.dumps({
         "input": str(Path(args.dir).resolve()), "files": [str(f.name) for f in b.files],
-        "exposure_times": b.exposure_times.tolist(), "times_from": b.source, "notes": b.notes,
+        "exposure_times": b.exposure_times.tolist(), "times_from": b.source, "notes": b.notes, "warnings": seen,
         "method": args.method, "merge": args.merge,
         "response": "response.csv: f^-1(level) per channel, relative exposure, f^-1(top level) = 1",
         "radiance_units": "relative linear radiance (exposure / second, up to one global scale)"}, indent=1))
