@@ -8,7 +8,7 @@ package imports neither Mitsuba nor Dr.Jit.
 Methods (:data:`METHODS`; the photometric-stereo task registers each as ``inverse:<name>`` with
 its scene interface, ``docs/inverse.md``):
 
-- ``"mitsuba_prb"``: :func:`inverse_rendering_nicolet2021`, a height field on the image grid and a
+- ``"nicolet2021"``: :func:`inverse_rendering_nicolet2021`, a height field on the image grid and a
   per-pixel albedo fitted by Adam on a Sobolev-preconditioned gradient (large steps, Nicolet et
   al. 2021) of the image loss of Mitsuba's path-traced renders, the residual back-propagated
   through path replay backpropagation (Vicini et al. 2021) of the direct light.
@@ -27,6 +27,6 @@ from __future__ import annotations
 
 from pbrbench.inverse.nicolet2021 import InverseRenderingResult, inverse_rendering_nicolet2021
 
-METHODS = {"mitsuba_prb": inverse_rendering_nicolet2021}
+METHODS = {"nicolet2021": inverse_rendering_nicolet2021}
 
 __all__ = ["METHODS", "InverseRenderingResult", "inverse_rendering_nicolet2021"]

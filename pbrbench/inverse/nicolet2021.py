@@ -76,7 +76,7 @@ References
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 
 import numpy as np
 
@@ -234,6 +234,199 @@ def _check_levels(levels, iterations, shape) -> tuple[tuple[int, ...], tuple[int
     return levels, iterations
 
 
+@dataclass(frozen=True)
+class Options:
+    """The schedule and model options of :func:`inverse_rendering_nicolet2021` (its Parameters
+    say what each means); :meth:`checked` validates them for an image size."""
+
+    levels: tuple = (4, 2, 1)
+    iterations: tuple = (30, 12, 20)
+    spp: int = 16
+    spp_grad: int = 4
+    lr_height: float = 0.01
+    lr_albedo: float = 0.02
+    decay: float = 0.05
+    smoothness: float = 0.5
+    sobolev: float = 0.5
+    average: float = 0.3
+    robust: float = 3.0
+    relief_every: int = 0
+    relief_modes_n: int = 3
+    relief_step: float = 0.05
+    relief_spp: int = 8
+    relief_sigma: float = 0.0
+    light_model: str = "scene"
+    adjoint: str = "direct"
+    extend: bool = True
+    seed: int = 0
+
+    def checked(self, shape: tuple[int, int]) -> Options:
+        """The options validated for (H, W) images (``ValueError`` naming the option and the fix)."""
+        if self.adjoint not in ADJOINTS:
+            raise ValueError(f"adjoint: {self.adjoint!r}; use one of {', '.join(ADJOINTS)}")
+        if self.light_model not in LIGHT_MODELS:
+            raise ValueError(f"light_model: {self.light_model!r}; use 'scene' (the scene's emitters) or 'vectors' "
+                             "(distant sources from the light vectors)")
+        levels, iterations = _check_levels(self.levels, self.iterations, shape)
+        return replace(
+            self, levels=levels, iterations=iterations,
+            spp=check_int(self.spp, "spp", lo=1), spp_grad=check_int(self.spp_grad, "spp_grad", lo=1),
+            relief_spp=check_int(self.relief_spp, "relief_spp", lo=1),
+            relief_every=check_int(self.relief_every, "relief_every", lo=0),
+            relief_modes_n=check_int(self.relief_modes_n, "relief_modes_n", lo=1),
+            relief_step=check_number(self.relief_step, "relief_step", lo=0.0, hi=0.5),
+            relief_sigma=check_number(self.relief_sigma, "relief_sigma", lo=0.0),
+            lr_height=check_positive(self.lr_height, "lr_height"), lr_albedo=check_positive(self.lr_albedo, "lr_albedo"),
+            decay=check_number(self.decay, "decay", lo=0.0, hi=1.0),
+            smoothness=check_number(self.smoothness, "smoothness", lo=0.0),
+            sobolev=check_number(self.sobolev, "sobolev", lo=0.0),
+            average=check_number(self.average, "average", lo=0.0, hi=1.0),
+            robust=check_number(self.robust, "robust", lo=0.0), seed=check_int(self.seed, "seed", lo=0))
+
+
+def _check_inputs(images, lights, mask, scene, max_depth):
+    """The images (K, H, W) (colour: the channel mean), the light vectors, the mask and the
+    transport, checked; ``ValueError`` naming the input and the fix otherwise."""
+    from pbrbench.inverse.scene import check_camera
+
+    imgs = as_float_array(images, "images", ndim=(3, 4))
+    if imgs.ndim == 4:
+        imgs = imgs.mean(axis=-1)
+    k, h, w = imgs.shape
+    lv = as_float_array(lights, "lights", ndim=(2,))
+    if lv.shape != (k, 3):
+        raise ValueError(f"lights: shape {lv.shape}, expected ({k}, 3): one source vector per image")
+    if k < 3:
+        raise ValueError(f"images: {k} image(s); photometric stereo needs at least 3 lights")
+    if mask is None:
+        raise ValueError("mask: required; inverse rendering fits the images over the object's pixels: pass the (H, W) "
+                         "boolean object mask")
+    m = check_mask(mask, (h, w))
+    if not m.any():
+        raise ValueError("mask: no pixel is set; pass the object's pixels")
+    check_finite(imgs, "images", where=np.broadcast_to(m, imgs.shape))
+    check_finite(lv, "lights")
+    if scene is None or not hasattr(scene, "camera") or not hasattr(scene, "light_set"):
+        raise ValueError("scene: required; pass the SceneSpec of the images (camera, light set, extent)")
+    check_camera(scene)
+    max_depth = check_int(max_depth, "max_depth", lo=-1)
+    if max_depth in (0, 1):
+        raise ValueError(f"max_depth: {max_depth}; use -1 (full interreflection) or >= 2 (2 = direct light only)")
+    return imgs, lv, m, max_depth
+
+
+def _start(imgs, lv, data, surf, hf_full, start):
+    """Corner heights and albedo rho to start from: Woodham's normals integrated and his albedo
+    (the median where it is not valid), or ``start``."""
+    from pbrbench.infer.photometric_stereo import photometric_stereo_woodham1980
+    from pbrbench.inverse import heightfield as HF
+
+    h, w = data.shape
+    ws = photometric_stereo_woodham1980(imgs, lv, mask=data)
+    if start is None:
+        zc = _fill_nearest(hf_full.corners(HF.heights_from_normals(ws.normals, ws.valid, hf_full)), hf_full.active)
+        rho0 = np.pi * ws.albedo
+        med = float(np.median(rho0[ws.valid])) if ws.valid.any() else 0.5
+        rho = np.clip(np.where(ws.valid, rho0, med), 0.01, 0.99)
+    else:
+        zc = as_float_array(start[0], "start heights", ndim=(2,))
+        rho = as_float_array(start[1], "start albedo", ndim=(2,))
+        if zc.shape != (h + 1, w + 1) or rho.shape != (h, w):
+            raise ValueError(f"start: heights {zc.shape} and albedo {rho.shape}; expected {(h + 1, w + 1)} and {(h, w)}")
+        zc = _fill_nearest(np.nan_to_num(zc), hf_full.active & np.isfinite(zc))
+        rho = np.clip(rho, 0.01, 0.99)
+    return zc, rho
+
+
+@dataclass
+class _Fit:
+    """What the levels share: the problem, and the running iteration count, losses and paths."""
+
+    imgs: np.ndarray
+    data: np.ndarray
+    surf: np.ndarray
+    scene: object
+    emitters: list
+    max_depth: int
+    opt: Options
+    ext: tuple
+    adj: object
+    it: int = 0
+    paths: int = 0
+    losses: list = field(default_factory=list)
+    lev: list = field(default_factory=list)
+
+
+def _fit_level(fit: _Fit, f: int, n_it: int, last: bool, zc: np.ndarray, rho: np.ndarray):
+    """One level of the coarse-to-fine schedule at downsampling ``f``: ``n_it`` Adam iterations
+    (and the global steps) from corner heights ``zc`` and albedo ``rho`` at full resolution;
+    returns them after the level, at full resolution."""
+    from pbrbench.inverse import heightfield as HF
+    from pbrbench.inverse.optim import Adam, LargeSteps, schedule
+    from pbrbench.inverse.render import HeightFieldScene
+
+    o, scene, imgs, data, surf = fit.opt, fit.scene, fit.imgs, fit.data, fit.surf
+    k = imgs.shape[0]
+    hw = float(scene.camera.half_width)
+    film = 2.0 * hw
+    total = sum(o.iterations)
+    d_l = HF.downsample_mask(data, f) if f > 1 else data
+    s_l = HF.downsample_any(surf, f) if f > 1 else surf
+    t_l = HF.downsample_images(imgs, f) if f > 1 else imgs
+    if not d_l.any():
+        raise ValueError(f"levels: at factor {f} no coarse pixel lies wholly inside the mask; drop that level")
+    hf = HF.HeightField(s_l, hw, extend=fit.ext)
+    z = hf.params_from_corners(zc[::f, ::f])
+    r_l = HF.downsample_images(rho[None], f)[0] if f > 1 else rho.copy()
+    sc = HeightFieldScene(scene, hf, z, r_l, fit.emitters, max_depth=fit.max_depth, rr_depth=int(scene.render.rr_depth),
+                          spp=o.spp, integrator="prb" if o.adjoint == "full" else "path")
+    wts = np.where(d_l, 1.0, 0.0) / (d_l.sum() * k * max(float((t_l[:, d_l] ** 2).mean()), 1e-30))
+    T = HF.thin_plate_matrix(hf)
+    tw = o.smoothness / (f * f * max(T.shape[0], 1))   # the same curvature penalty at every level
+    TT = (T.T @ T).tocsr()
+    pre = LargeSteps(hf.laplacian(), (o.sobolev * film / hf.h) ** 2)
+    opt_z, opt_a = Adam(hf.n_params, uniform="rms"), Adam(r_l.size)
+    n_avg = max(1, int(round(o.average * n_it))) if last else 0
+    z_sum, a_sum = np.zeros_like(z), np.zeros_like(r_l)
+    for t in range(n_it):
+        sd = o.seed * 100003 + fit.it
+        if o.adjoint == "full":
+            loss, gz, ga, R = sc.full_gradients(z, r_l, t_l, wts, sd, o.spp_grad)
+            irls = np.ones_like(R)
+        else:
+            sc.set_state(z, r_l, grad=False)
+            R = sc.renders(sd)
+            loss, adj_img, irls = _robust(R - t_l, d_l, wts, o.robust)
+            gz, ga = sc.backward(z, r_l, adj_img, sd, o.spp_grad, fit.adj)
+        fit.paths += k * (o.spp + 2 * o.spp_grad) * s_l.size
+        cap = CLAMP * float(np.median(np.abs(gz))) + 1e-30   # fireflies of the MC gradient
+        gz = np.clip(gz, -cap, cap) + 2.0 * tw * (TT @ z)
+        loss += tw * float(z @ (TT @ z))
+        rate = schedule(fit.it, total, 1.0, o.decay)
+        g = pre.gradient_u(gz)
+        z = z + opt_z.step(g - g.mean(), rate * o.lr_height * film)
+        r_l = np.clip(np.exp(np.log(r_l) + opt_a.step((ga * r_l).ravel(), rate * o.lr_albedo).reshape(r_l.shape)),
+                      0.01, 0.99)
+        if o.relief_every and t % o.relief_every == o.relief_every - 1:
+            z, r_l, n_sets = _global_step(sc, z, r_l, t_l, d_l, wts, irls, sd + 7919, o.relief_spp,
+                                          o.relief_step, o.relief_modes_n, o.relief_sigma)
+            fit.paths += n_sets * k * o.relief_spp * s_l.size
+        fit.losses.append(loss)
+        fit.lev.append(f)
+        fit.it += 1
+        if t >= n_it - n_avg:
+            z_sum += z
+            a_sum += r_l
+    if n_avg:
+        z, r_l = z_sum / n_avg, a_sum / n_avg
+    del sc
+    # to the next level: corners bilinearly, albedo by pixel replication
+    zc_l = _fill_nearest(hf.corners(z), hf.active)
+    zc = HF.upsample_corners(zc_l, f) if f > 1 else zc_l
+    rho = np.kron(r_l, np.ones((f, f))) if f > 1 else r_l
+    return zc, rho
+
+
 def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int = -1,
                                   levels=(4, 2, 1), iterations=(30, 12, 20), spp: int = 16, spp_grad: int = 4,
                                   lr_height: float = 0.01, lr_albedo: float = 0.02, decay: float = 0.05,
@@ -308,158 +501,42 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
         On a missing or empty mask, mismatched shapes or light counts, a non-orthographic camera,
         bad options, or a Mitsuba build without a differentiable variant.
     """
-    from pbrbench.infer.photometric_stereo import photometric_stereo_woodham1980
     from pbrbench.inverse import heightfield as HF
-    from pbrbench.inverse.optim import Adam, LargeSteps, schedule
-    from pbrbench.inverse.scene import check_camera, frame_extension, light_dicts
+    from pbrbench.inverse.render import ad_mitsuba
+    from pbrbench.inverse.scene import frame_extension, light_dicts
 
     t0, c0 = time.perf_counter(), time.process_time()
-    imgs = as_float_array(images, "images", ndim=(3, 4))
-    if imgs.ndim == 4:
-        imgs = imgs.mean(axis=-1)
-    k, h, w = imgs.shape
-    lv = as_float_array(lights, "lights", ndim=(2,))
-    if lv.shape != (k, 3):
-        raise ValueError(f"lights: shape {lv.shape}, expected ({k}, 3): one source vector per image")
-    if k < 3:
-        raise ValueError(f"images: {k} image(s); photometric stereo needs at least 3 lights")
-    if mask is None:
-        raise ValueError("mask: required; inverse rendering fits the images over the object's pixels: pass the (H, W) "
-                         "boolean object mask")
-    m = check_mask(mask, (h, w))
-    if not m.any():
-        raise ValueError("mask: no pixel is set; pass the object's pixels")
-    check_finite(imgs, "images", where=np.broadcast_to(m, imgs.shape))
-    check_finite(lv, "lights")
-    if scene is None or not hasattr(scene, "camera") or not hasattr(scene, "light_set"):
-        raise ValueError("scene: required; pass the SceneSpec of the images (camera, light set, extent)")
-    check_camera(scene)
-    max_depth = check_int(max_depth, "max_depth", lo=-1)
-    if max_depth in (0, 1):
-        raise ValueError(f"max_depth: {max_depth}; use -1 (full interreflection) or >= 2 (2 = direct light only)")
-    if adjoint not in ADJOINTS:
-        raise ValueError(f"adjoint: {adjoint!r}; use one of {', '.join(ADJOINTS)}")
-    if light_model not in LIGHT_MODELS:
-        raise ValueError(f"light_model: {light_model!r}; use 'scene' (the scene's emitters) or 'vectors' "
-                         "(distant sources from the light vectors)")
-    levels, iterations = _check_levels(levels, iterations, (h, w))
-    spp, spp_grad = check_int(spp, "spp", lo=1), check_int(spp_grad, "spp_grad", lo=1)
-    relief_spp = check_int(relief_spp, "relief_spp", lo=1)
-    relief_every = check_int(relief_every, "relief_every", lo=0)
-    relief_modes_n = check_int(relief_modes_n, "relief_modes_n", lo=1)
-    relief_step = check_number(relief_step, "relief_step", lo=0.0, hi=0.5)
-    relief_sigma = check_number(relief_sigma, "relief_sigma", lo=0.0)
-    lr_height, lr_albedo = check_positive(lr_height, "lr_height"), check_positive(lr_albedo, "lr_albedo")
-    decay = check_number(decay, "decay", lo=0.0, hi=1.0)
-    smoothness = check_number(smoothness, "smoothness", lo=0.0)
-    sobolev = check_number(sobolev, "sobolev", lo=0.0)
-    average = check_number(average, "average", lo=0.0, hi=1.0)
-    robust = check_number(robust, "robust", lo=0.0)
-    seed = check_int(seed, "seed", lo=0)
-
-    from pbrbench.inverse.render import HeightFieldScene, ad_mitsuba
+    imgs, lv, m, max_depth = _check_inputs(images, lights, mask, scene, max_depth)
+    o = Options(levels=levels, iterations=iterations, spp=spp, spp_grad=spp_grad, lr_height=lr_height,
+                lr_albedo=lr_albedo, decay=decay, smoothness=smoothness, sobolev=sobolev, average=average,
+                robust=robust, relief_every=relief_every, relief_modes_n=relief_modes_n, relief_step=relief_step,
+                relief_spp=relief_spp, relief_sigma=relief_sigma, light_model=light_model, adjoint=adjoint,
+                extend=extend, seed=seed).checked(imgs.shape[1:])
 
     mi = ad_mitsuba()
-    emitters = light_dicts(mi, scene, lv, light_model)
-    hw = float(scene.camera.half_width)
-    film = 2.0 * hw
-    ext = frame_extension(scene, h, w) if extend else (0.0, 0.0, 0.0, 0.0)
-    rr = int(scene.render.rr_depth)
+    h, w = imgs.shape[1:]
+    ext = frame_extension(scene, h, w) if o.extend else (0.0, 0.0, 0.0, 0.0)
     data, surf = HF.pixel_sets(m, imgs)
-    hf_full = HF.HeightField(surf, hw)
-
-    # ---------------------------------------------------------------- the start
-    ws = photometric_stereo_woodham1980(imgs, lv, mask=data)
-    if start is None:
-        zc = _fill_nearest(hf_full.corners(HF.heights_from_normals(ws.normals, ws.valid, hf_full)), hf_full.active)
-        rho0 = np.pi * ws.albedo
-        med = float(np.median(rho0[ws.valid])) if ws.valid.any() else 0.5
-        rho = np.clip(np.where(ws.valid, rho0, med), 0.01, 0.99)
-    else:
-        zc = as_float_array(start[0], "start heights", ndim=(2,))
-        rho = as_float_array(start[1], "start albedo", ndim=(2,))
-        if zc.shape != (h + 1, w + 1) or rho.shape != (h, w):
-            raise ValueError(f"start: heights {zc.shape} and albedo {rho.shape}; expected {(h + 1, w + 1)} and {(h, w)}")
-        zc = _fill_nearest(np.nan_to_num(zc), hf_full.active & np.isfinite(zc))
-        rho = np.clip(rho, 0.01, 0.99)
+    hf_full = HF.HeightField(surf, float(scene.camera.half_width))
+    zc, rho = _start(imgs, lv, data, surf, hf_full, start)
     initial_normals = np.where(surf[..., None], HF.pixel_normals(zc, hf_full.h), 0.0)
     initial_albedo = np.where(data, rho / np.pi, 0.0)
 
-    adj = mi.load_dict({"type": "prb", "max_depth": 2}) if adjoint == "direct" else None
-    total = sum(iterations)
-    losses, lev = [], []
-    paths = 0
-    it = 0
-    for li, (f, n_it) in enumerate(zip(levels, iterations, strict=True)):
+    fit = _Fit(imgs, data, surf, scene, light_dicts(mi, scene, lv, o.light_model), max_depth, o, ext,
+               mi.load_dict({"type": "prb", "max_depth": 2}) if o.adjoint == "direct" else None)
+    for li, (f, n_it) in enumerate(zip(o.levels, o.iterations, strict=True)):
         if n_it == 0:
             continue
-        d_l = HF.downsample_mask(data, f) if f > 1 else data
-        s_l = HF.downsample_any(surf, f) if f > 1 else surf
-        t_l = HF.downsample_images(imgs, f) if f > 1 else imgs
-        if not d_l.any():
-            raise ValueError(f"levels: at factor {f} no coarse pixel lies wholly inside the mask; drop that level")
-        hf = HF.HeightField(s_l, hw, extend=ext)
-        z = hf.params_from_corners(zc[::f, ::f])
-        r_l = HF.downsample_images(rho[None], f)[0] if f > 1 else rho.copy()
-        sc = HeightFieldScene(scene, hf, z, r_l, emitters, max_depth=max_depth, rr_depth=rr, spp=spp,
-                              integrator="prb" if adjoint == "full" else "path")
-        wts = np.where(d_l, 1.0, 0.0) / (d_l.sum() * k * max(float((t_l[:, d_l] ** 2).mean()), 1e-30))
-        T = HF.thin_plate_matrix(hf)
-        tw = smoothness / (f * f * max(T.shape[0], 1))   # the same curvature penalty at every level
-        TT = (T.T @ T).tocsr()
-        pre = LargeSteps(hf.laplacian(), (sobolev * film / hf.h) ** 2)
-        opt_z, opt_a = Adam(hf.n_params, uniform="rms"), Adam(r_l.size)
-        n_avg = max(1, int(round(average * n_it))) if li == len(levels) - 1 else 0
-        z_sum, a_sum = np.zeros_like(z), np.zeros_like(r_l)
-        for t in range(n_it):
-            sd = seed * 100003 + it
-            if adjoint == "full":
-                loss, gz, ga, R = sc.full_gradients(z, r_l, t_l, wts, sd, spp_grad)
-                irls = np.ones_like(R)
-            else:
-                sc.set_state(z, r_l, grad=False)
-                R = sc.renders(sd)
-                loss, adj_img, irls = _robust(R - t_l, d_l, wts, robust)
-                gz, ga = sc.backward(z, r_l, adj_img, sd, spp_grad, adj)
-            paths += k * (spp + 2 * spp_grad) * s_l.size
-            cap = CLAMP * float(np.median(np.abs(gz))) + 1e-30   # fireflies of the MC gradient
-            gz = np.clip(gz, -cap, cap) + 2.0 * tw * (TT @ z)
-            loss += tw * float(z @ (TT @ z))
-            rate = schedule(it, total, 1.0, decay)
-            g = pre.gradient_u(gz)
-            z = z + opt_z.step(g - g.mean(), rate * lr_height * film)
-            r_l = np.clip(np.exp(np.log(r_l) + opt_a.step((ga * r_l).ravel(), rate * lr_albedo).reshape(r_l.shape)),
-                          0.01, 0.99)
-            if relief_every and t % relief_every == relief_every - 1:
-                z, r_l, n_sets = _global_step(sc, z, r_l, t_l, d_l, wts, irls, sd + 7919, relief_spp,
-                                              relief_step, relief_modes_n, relief_sigma)
-                paths += n_sets * k * relief_spp * s_l.size
-            losses.append(loss)
-            lev.append(f)
-            it += 1
-            if t >= n_it - n_avg:
-                z_sum += z
-                a_sum += r_l
-        if n_avg:
-            z, r_l = z_sum / n_avg, a_sum / n_avg
-        del sc
-        # to the next level: corners bilinearly, albedo by pixel replication
-        zc_l = _fill_nearest(hf.corners(z), hf.active)
-        zc = HF.upsample_corners(zc_l, f) if f > 1 else zc_l
-        rho = np.kron(r_l, np.ones((f, f))) if f > 1 else r_l
+        zc, rho = _fit_level(fit, f, n_it, li == len(o.levels) - 1, zc, rho)
         if callback is not None:
             callback(f, np.where(surf[..., None], HF.pixel_normals(zc, hf_full.h), 0.0), rho / np.pi)
 
     normals = np.where(surf[..., None], HF.pixel_normals(zc, hf_full.h), 0.0)
     height = np.where(surf, HF.pixel_heights(zc), 0.0)
     height = np.where(surf, height - height[surf].mean(), 0.0)
-    opts = dict(levels=levels, iterations=iterations, spp=spp, spp_grad=spp_grad, lr_height=lr_height,
-                lr_albedo=lr_albedo, decay=decay, smoothness=smoothness, sobolev=sobolev, average=average,
-                robust=robust, relief_every=relief_every, relief_modes_n=relief_modes_n, relief_step=relief_step,
-                relief_spp=relief_spp, relief_sigma=relief_sigma, light_model=light_model, adjoint=adjoint, extend=ext, max_depth=max_depth,
-                seed=seed, variant=mi.variant())
+    opts = {**asdict(o), "extend": ext, "max_depth": max_depth, "variant": mi.variant()}
     return InverseRenderingResult(
         normals=normals, albedo=np.where(data, rho / np.pi, 0.0), valid=data, height=height,
         corner_heights=np.where(hf_full.active, zc, np.nan), initial_normals=initial_normals,
-        initial_albedo=initial_albedo, loss=np.asarray(losses), level=np.asarray(lev),
-        wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, paths=int(paths), options=opts)
+        initial_albedo=initial_albedo, loss=np.asarray(fit.losses), level=np.asarray(fit.lev),
+        wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0, paths=int(fit.paths), options=opts)

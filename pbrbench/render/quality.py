@@ -114,7 +114,7 @@ PRESETS: dict[str, Quality] = {
             "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
             "hdr/mitsunaga1999": {"degree": 5},
             # inverse rendering (one scene at draft): two levels, a few iterations, fewer samples
-            "photometric_stereo/inverse:mitsuba_prb": {"levels": (2, 1), "iterations": (6, 4), "spp": 8,
+            "photometric_stereo/inverse:nicolet2021": {"levels": (2, 1), "iterations": (6, 4), "spp": 8,
                                                         "spp_grad": 2},
             # the interreflection task's forward models: 8 patches across the view instead of 16
             **{f"interreflection/{m}": {"cells": 8}

@@ -144,7 +144,7 @@ class PhotometricStereoTask(Task):
     reflex_families = REFLEX
     short_reflex_families = ("groove_reflex_parallel",)
     cost_notes = {
-        "inverse:mitsuba_prb": "analysis by synthesis: Adam over a height field and an albedo texture, each "
+        "inverse:nicolet2021": "analysis by synthesis: Adam over a height field and an albedo texture, each "
                                "iteration a Mitsuba render of every light and its gradient (about 59 M camera "
                                "paths per call at standard), called five times per job (the images and the four "
                                "delete-one-group replicates); run on three scenes only (docs/inverse.md)",

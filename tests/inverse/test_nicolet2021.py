@@ -23,7 +23,7 @@ def _inputs(spec, n=16):
 
 
 def test_methods_table():
-    assert METHODS == {"mitsuba_prb": inverse_rendering_nicolet2021}
+    assert METHODS == {"nicolet2021": inverse_rendering_nicolet2021}
 
 
 @pytest.mark.parametrize("change, match", [

@@ -16,7 +16,7 @@ from tests.fakes import ps_gt, ps_job, run_task, scores_of
 
 def test_registered_as_inverse_with_the_scene_interface():
     algs = {a.name: a for a in TASK.builtin_algorithms()}
-    a = algs["inverse:mitsuba_prb"]
+    a = algs["inverse:nicolet2021"]
     assert a.interface == "scene" and a.kind == "method"
     assert a.applies("global") and a.applies("local") and not a.applies("area")
 
