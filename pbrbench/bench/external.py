@@ -34,8 +34,9 @@ An export may have been handed over by someone else, so ``evaluate`` trusts none
 * a prediction file must be a regular file whose header (``.npy``: the checks of
   :func:`pbrbench.scene.data.read_npy`, nothing unpickled; PNG, EXR, TIFF, PFM: their declared
   size) announces at most :data:`MAX_PREDICTION_BYTES` before its data is read; its values and
-  mask must be finite; and a score of the predictions that is not finite (an overflow) is
-  refused: the job is scored as failed, with its reason.
+  mask must be finite and at most :data:`MAX_PREDICTION_VALUE` in magnitude; and a score of the
+  predictions that is not finite (an overflow) is refused: the job is scored as failed, with its
+  reason.
 """
 
 from __future__ import annotations
@@ -59,6 +60,7 @@ FORMAT = "pbrbench-export/1"
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
 MAX_PREDICTION_BYTES = MAX_DATA_BYTES   # largest array a prediction file may hold (as float64), as a scene data file
+MAX_PREDICTION_VALUE = 1e150            # largest |value| of a prediction: beyond, squares and norms overflow float64
 
 CONVENTIONS = {
     "arrays": "images (H, W[, C]) row 0 at the top, stacks (K, H, W[, C]); .npy files hold the exact float64 "
@@ -600,10 +602,17 @@ def _pfm_shape(path) -> tuple:
 
 
 def _tif_shape(path) -> tuple:
+    import logging
+
     import tifffile
 
-    with tifffile.TiffFile(str(path)) as t:
-        return tuple(t.series[0].shape)
+    log = logging.getLogger("tifffile")     # it logs damaged files; the reader's one line says it
+    was, log.disabled = log.disabled, True
+    try:
+        with tifffile.TiffFile(str(path)) as t:
+            return tuple(t.series[0].shape)
+    finally:
+        log.disabled = was
 
 
 def _read_file(path: Path, real: Path) -> np.ndarray:
@@ -730,6 +739,10 @@ def load_prediction(task, folder: Path, inputs: dict, record: dict, *, root: Pat
             if sel is not None:   # non-finite values outside the mask become 0; finite ones are kept
                 inside = sel.reshape(sel.shape + (1,) * (a.ndim - 2))
                 a = np.where(inside | np.isfinite(a), a, 0.0)
+            top = float(np.max(np.abs(a), initial=0.0))
+            if top > MAX_PREDICTION_VALUE:
+                raise ValueError(f"{path}: values reach {top:.3g}, beyond {MAX_PREDICTION_VALUE:.0e} (their squares "
+                                 f"overflow float64); write {pred.name} in its units ({pred.meaning})")
         out[pred.name] = a
     return out
 
@@ -889,10 +902,10 @@ class EvaluatedTask:
     @staticmethod
     def _failed(job, gts, alg, msg: str, scores) -> object:
         """A result holding ``scores`` and one ``failed`` score of ``alg`` (reason ``msg``)."""
-        from pbrbench.tasks import _common as C
         from pbrbench.tasks.base import JobResult
+        from pbrbench.tasks.common.scoring import ScoreBook, scene_hash
 
-        book = C.ScoreBook(job, C.scene_hash(gts.get(job.scene)), [alg])
+        book = ScoreBook(job, scene_hash(gts.get(job.scene)), [alg])
         book.add(alg.name, {"failed": 1.0}, 0.0)
         res = JobResult(job, scores=list(scores) + book.scores)
         res.failures[alg.name] = msg
@@ -926,25 +939,44 @@ class EvaluatedTask:
         self.reader.loaded = None
         try:
             alg = next((a for a in algorithms if a.fn is self.reader), None)
-            res = self._direct(job, gts, alg, seed, quality) if alg is not None else None
-            if res is None:
-                with np.errstate(all="ignore"):
-                    res = self.task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
-            else:
+            try:
+                res = self._scored(job, gts, alg, algorithms, seed, quality)
+            except Exception as e:  # noqa: BLE001 - the task could not score the predictions it read
+                if alg is None or self.reader.loaded is None:
+                    raise
+                msg = f"{self.reader.loaded}: the predictions cannot be scored ({one_line(e)}); write finite values " \
+                      "of the expected magnitude"
                 others = [a for a in algorithms if a is not alg]
-                if others:
-                    more = self.task.run_job(job, gts, seed=seed, algorithms=others, quality=quality)
-                    res.scores += more.scores
+                more = self.task.run_job(job, gts, seed=seed, algorithms=others, quality=quality) if others else None
+                res = self._failed(job, gts, alg, msg, more.scores if more else [])
+                if more is not None:
                     for k in ("images", "error_maps", "plots", "failures"):
                         getattr(res, k).update(getattr(more, k))
             if alg is None:
                 return res
             record = self.records[job.key]
-            if alg.name in res.failures and not self.reader.is_replicate(record):
-                self.reader.errors.setdefault(job.key, res.failures[alg.name])
+            if alg.name in res.failures:
+                if not self.reader.is_replicate(record):
+                    self.reader.errors.setdefault(job.key, res.failures[alg.name])
+                elif not res.failures[alg.name].startswith("_NoReplicate"):
+                    self.reader.replicate_errors.setdefault(job.key, res.failures[alg.name])
             return self._refuse_non_finite(job, gts, alg, res)
         finally:
             _JOB.reset(token)
+
+    def _scored(self, job, gts, alg, algorithms, seed, quality):
+        """The task's result on ``job``: the predictions' own scoring route, else run_job."""
+        res = self._direct(job, gts, alg, seed, quality) if alg is not None else None
+        if res is None:
+            with np.errstate(all="ignore"):
+                return self.task.run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
+        others = [a for a in algorithms if a is not alg]
+        if others:
+            more = self.task.run_job(job, gts, seed=seed, algorithms=others, quality=quality)
+            res.scores += more.scores
+            for k in ("images", "error_maps", "plots", "failures"):
+                getattr(res, k).update(getattr(more, k))
+        return res
 
 
 def _file_digest(h, p: Path, root: Path) -> None:

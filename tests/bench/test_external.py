@@ -372,3 +372,69 @@ def test_the_commands_on_draft_renders_round_trip_exactly(tmp_path, cache_dir, c
         a, b = st.scores(run), st.scores(ev)
     ref = _by_key(a, "blake1985")
     assert _by_key(a, "same") == ref and _by_key(b, "ext") == ref and len(ref) >= 12
+
+
+class InfPS(PS):
+    """Photometric stereo whose scoring of the predictions overflows on the ``local`` job (a
+    stand-in for 1e308 values squared) or, with ``crash``, raises there."""
+
+    crash = False
+
+    def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
+        from dataclasses import replace
+
+        res = super().run_job(job, gts, seed=seed, algorithms=algorithms, quality=quality)
+        if job.condition == "local" and any(a.name == "external" for a in algorithms):
+            if self.crash:
+                raise FloatingPointError("overflow in the metric")
+            res.scores = [replace(s, value=math.inf) if s.metric == "normal_mean_deg" else s for s in res.scores]
+        return res
+
+
+@pytest.mark.parametrize("crash", [False, True], ids=["inf score", "scoring raises"])
+def test_a_score_that_is_not_finite_is_refused_and_the_other_jobs_are_scored(tmp_path, crash):
+    task = InfPS()
+    task.crash = crash
+    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    _external(tmp_path / "export")
+    m = read_manifest(tmp_path / "export")
+    out, reader = evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
+                                  source=Synthetic(tmp_path / "cache"), log=lambda m: None)
+    bad = m["jobs"][0]
+    assert list(reader.errors) == [bad["key"]] and not out.errors
+    msg = reader.errors[bad["key"]]
+    assert msg.startswith(str(tmp_path / "export" / bad["folder"])) and "\n" not in msg
+    assert ("not finite" in msg) != crash and ("cannot be scored" in msg) == crash
+    assert all(math.isfinite(s["value"]) for s in out.scores)
+    scored = {s["condition"] for s in out.scores if s["metric"] == "normal_mean_deg"}
+    assert scored == {"local+noise0.01", "global"}
+    assert [s["condition"] for s in out.scores if s["metric"] == "failed" and s["value"] == 1.0] == ["local"]
+
+
+def test_a_job_folder_outside_the_export_is_never_read(tmp_path):
+    """A manifest whose job folder is ``../outside`` (a good job's copy, predictions included) or a
+    link out of the export: refused before a run is created, naming the manifest."""
+    import shutil
+
+    from pbrbench.errors import UserError
+
+    task = TASKS["photometric_stereo"]
+    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    _external(tmp_path / "export")
+    mp = tmp_path / "export" / "manifest.json"
+    m = json.loads(mp.read_text())
+    shutil.copytree(tmp_path / "export" / m["jobs"][0]["folder"], tmp_path / "outside")
+    good = m["jobs"][0]["folder"]
+    m["jobs"][0]["folder"] = "../outside"
+    mp.write_text(json.dumps(m))
+    with pytest.raises(UserError, match=r"manifest.json: jobs\[0\].folder '../outside' is not a plain path"):
+        evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
+                        source=Synthetic(tmp_path / "cache"), log=lambda m: None)
+    m["jobs"][0]["folder"] = good
+    mp.write_text(json.dumps(m))
+    shutil.rmtree(tmp_path / "export" / good)
+    (tmp_path / "export" / good).symlink_to(tmp_path / "outside")
+    with pytest.raises(UserError, match="resolves to .*outside.*a symbolic link"):
+        evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
+                        source=Synthetic(tmp_path / "cache"), log=lambda m: None)
+    assert not (tmp_path / "ev" / "h.sqlite").exists()
