@@ -189,6 +189,8 @@ def _ps_render(d: Path, drop: int):
         if lights.ndim != 2 or lights.shape[1] != 3 or not np.isfinite(lights).all():
             raise UserError(f"{js}: light_vectors must be a list of finite (x, y, z) vectors, got shape {lights.shape}; "
                             f"{again}")
+        if not (np.linalg.norm(lights, axis=1) > 0).all():
+            raise UserError(f"{js}: a zero vector in light_vectors; {again}")
         if len(lights) != k:
             raise UserError(f"{js}: {len(lights)} light_vectors for {k} per-light images in {exr.name}; {again}")
         imgs = r.light_stack("radiance").astype(np.float64)
@@ -232,14 +234,14 @@ def run_ps(args) -> int:
     try:
         res = photometric_stereo(imgs, lights, method=args.method, mask=mask)
     except ValueError as e:
-        raise UserError(f"photometric stereo ({args.method}): {e}") from None
+        raise UserError(f"{args.dir}: photometric stereo ({args.method}): {e}") from None
     t_ps = time.perf_counter() - t0
     st.next()
     dom = largest_component(res.valid & (res.normals[..., 2] > 1e-3))
     try:
         z = integrate_normals(res.normals, mask=dom, method=args.integrate, pixel_size=px)
     except ValueError as e:
-        raise UserError(f"integration ({args.integrate}): {e}") from None
+        raise UserError(f"{args.dir}: integration ({args.integrate}): {e}") from None
     z = np.where(dom, z - (z[dom].mean() if dom.any() else 0.0), 0.0)
     st.next()
     out = _out(args.out)
@@ -340,7 +342,7 @@ def run_retinex(args) -> int:
         refl, shad = lightness(np.where((m[..., None] if img.ndim == 3 else m), img, 0.0), method=args.method,
                                mask=m, **opts)
     except ValueError as e:
-        raise UserError(f"retinex ({args.method}): {e}") from None
+        raise UserError(f"{args.image}: retinex ({args.method}): {e}") from None
     st.next()
     out = _out(args.out)
     io.write_exr_image(out / "reflectance.exr", refl)
@@ -377,7 +379,7 @@ def run_hdr(args) -> int:
         times = resp.exposure_times if resp.exposure_times is not None else b.exposure_times
         rad = merge_hdr(b.images, times, resp, method=args.merge)
     except ValueError as e:
-        raise UserError(f"hdr ({args.method}): {e}") from None
+        raise UserError(f"{args.dir}: hdr ({args.method}): {e}") from None
     st.next()
     out = _out(args.out)
     io.write_exr_image(out / "radiance.exr", rad)

@@ -125,7 +125,14 @@ def _from_times_file(folder: Path, f: Path, images: list[Path]):
         return list(images), [t for _, t in pairs], []
     if any(p is None for p, _ in pairs):
         raise UserError(f"{f}: mix of 'time' and 'name time' lines; use one form")
-    return [p for p, _ in pairs], [t for _, t in pairs], []
+    files = [p for p, _ in pairs]
+    seen = {}
+    for i, p in enumerate(files, 1):
+        if p.resolve() in seen:
+            raise UserError(f"{f}, line {i}: lists {p.name} again (first on line {seen[p.resolve()]}); list each "
+                            "image once")
+        seen[p.resolve()] = i
+    return files, [t for _, t in pairs], []
 
 
 def _from_inverse_list(folder: Path, f: Path, hdrshop: bool):
@@ -172,7 +179,7 @@ def _exif_time(path: Path) -> float | None:
         v = float(v)
     except (TypeError, ValueError, ZeroDivisionError):
         return None
-    return v if v > 0 else None
+    return v if v > 0 and np.isfinite(v) else None
 
 
 def load_bracket(folder) -> Bracket:

@@ -265,6 +265,10 @@ def load_diligent(folder, *, indices=None, normals: bool = True, log=None) -> Di
         warn(f"{ld}: {off.size} light direction(s) not of unit length (row {sel[off[0]] + 1}: {norms[off[0]]:.3g}); "
              "normalised (intensities belong in light_intensities.txt)")
     dirs = dirs / norms[:, None]
+    sv = np.linalg.svd(dirs, compute_uv=False) if len(dirs) >= 3 else np.zeros(3)
+    if len(dirs) >= 3 and sv[2] < 1e-6 * sv[0]:
+        raise UserError(f"{ld}: the light directions are {'collinear' if sv[1] < 1e-6 * sv[0] else 'coplanar'}; "
+                        "photometric stereo needs lights in 3 independent directions")
     away = np.flatnonzero(dirs[:, 2] < 0)
     if away.size:
         warn(f"{ld}: {away.size} light direction(s) point away from the camera (z < 0, row {sel[away[0]] + 1}); "

@@ -80,7 +80,11 @@ def read_table(path: Path, columns: int | None = None) -> np.ndarray:
 
 
 def read_lines(path: Path) -> list[str]:
-    text = Path(path).read_text(encoding="utf-8-sig", errors="replace")
+    """The non-blank, non-comment lines of a text file, stripped; ``UserError`` when unreadable."""
+    try:
+        text = Path(path).read_text(encoding="utf-8-sig", errors="replace")
+    except OSError as e:
+        raise UserError(f"{path}: cannot read ({e.strerror or e}); check the file and its permissions") from None
     return [ln.strip() for ln in text.splitlines() if ln.strip() and not ln.strip().startswith("#")]
 
 

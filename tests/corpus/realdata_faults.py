@@ -197,6 +197,8 @@ def _bracket_cases() -> list[Fault]:
         Fault(B, "times_lists_missing_file",
               lambda d: _text(d / "times.txt", "exp_00.png 1/250\nnope.png 1/60\n"), "error", "times.txt"),
         Fault(B, "times_mixed_forms", lambda d: _text(d / "times.txt", "exp_00.png 1/250\n1/60\n"), "error", "times.txt"),
+        Fault(B, "times_lists_file_twice", lambda d: _text(
+            d / "times.txt", "exp_00.png 1/250\nexp_01.png 1/60\nexp_01.png 1/15\n"), "error", "times.txt"),
         Fault(B, "opencv_list_zero", lambda d: (_remove("times.txt")(d), _text(d / "list.txt", "exp_00.png 0\n")),
               "error", "list.txt"),
         Fault(B, "hdrshop_bad_fstop", lambda d: (_remove("times.txt")(d), _text(
@@ -310,6 +312,8 @@ def _diligent_cases() -> list[Fault]:
         Fault(D, "directions_not_numbers", lambda d: _text(d / "light_directions.txt", "up left\n" * k), "error",
               "light_directions.txt"),
         Fault(D, "directions_empty", lambda d: _zero(d / "light_directions.txt"), "error", "light_directions.txt"),
+        Fault(D, "directions_coplanar", _table("light_directions.txt", np.tile([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]],
+                                                                              (k // 2, 1))), "error", "light_directions.txt"),
         Fault(D, "directions_not_unit", _table("light_directions.txt", DIRS * 2), "warn", "light_directions.txt"),
         Fault(D, "direction_away", _table("light_directions.txt", with_row(DIRS, 3, [0.0, 0.6, -0.8])), "warn",
               "light_directions.txt"),
@@ -435,6 +439,8 @@ def _render_cases() -> list[Fault]:
               "gt.json"),
         Fault(R, "light_vectors_too_few", meta(lambda m: dict(m, light_vectors=m["light_vectors"][:4])), "error",
               "gt.json"),
+        Fault(R, "light_vector_zero", meta(lambda m: dict(m, light_vectors=[[0, 0, 0]] + m["light_vectors"][1:])),
+              "error", "gt.json"),
         Fault(R, "pixel_size_string", meta(lambda m: dict(m, camera={"pixel_size": "big"})), "error", "gt.json"),
         Fault(R, "exr_truncated", lambda d: _truncate(d / "gt.exr"), "error", "gt.exr"),
         Fault(R, "exr_zero_byte", lambda d: _zero(d / "gt.exr"), "error", "gt.exr"),
