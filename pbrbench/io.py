@@ -166,9 +166,10 @@ def read_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
 
 # ----------------------------------------------------------------------------- previews
 def srgb_encode(x: np.ndarray) -> np.ndarray:
-    """Linear [0, 1] -> sRGB-encoded [0, 1] (IEC 61966-2-1)."""
-    x = np.clip(x, 0.0, 1.0)
-    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+    """Linear [0, 1] -> sRGB-encoded [0, 1] (IEC 61966-2-1, colour-science's inverse EOTF)."""
+    import colour
+
+    return np.asarray(colour.cctf_encoding(np.clip(x, 0.0, 1.0), function="sRGB"), dtype=np.float64)
 
 
 def tonemap(img: np.ndarray, *, percentile: float = 99.5, exposure: float | None = None) -> np.ndarray:

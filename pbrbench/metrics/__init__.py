@@ -14,7 +14,7 @@ from pbrbench.metrics.hdr import (
     log_radiance_rmse_extremes,
     response_rmse,
 )
-from pbrbench.metrics.interreflection import chromaticity_error, radiosity_scores
+from pbrbench.metrics.interreflection import chromaticity_error, delta_e2000, radiosity_scores
 from pbrbench.metrics.lightness import (
     albedo_abs_error,
     intrinsic_lmse,
@@ -69,7 +69,7 @@ def metric(name: str) -> Metric:
 __all__ = [
     "METRICS", "Metric", "metric", "specular_scores",
     "albedo_abs_error", "albedo_relative_error", "ambiguity_aware_scores", "angular_error_map",
-    "angular_error_stats", "chromaticity_error", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
+    "angular_error_stats", "chromaticity_error", "delta_e2000", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
     "height_errors", "height_rmse", "height_rmse_scaled", "intrinsic_lmse", "invalid_fraction",
     "lmse", "lmse_map", "log_radiance_rmse", "log_radiance_rmse_extremes", "mask_iou",
     "normal_angle", "radiosity_scores", "ratio_errors", "removal_errors", "response_rmse", "sfs_scores", "si_mse",

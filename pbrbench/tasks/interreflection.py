@@ -15,8 +15,8 @@ Conditions: ``global`` -- the prediction against the path tracer's full radiance
 condition: what a camera sees); ``local`` -- against its direct light alone (where the local model
 is right by construction: its error there is the models' own discretisation, and the radiosity
 models' excess is the interreflected light they add).  Scores
-(:mod:`pbrbench.metrics.interreflection`) over the visible surface (:func:`pbrbench.tasks.common.inputs.visible_surface`): ``radiosity_rel_error`` (the headline), ``radiosity_rel_rmse``, ``radiosity_abs_bias``
-and ``chromaticity_error``.
+(:mod:`pbrbench.metrics.interreflection`) over the visible surface (:func:`pbrbench.tasks.common.inputs.visible_surface`): ``radiosity_rel_error`` (the headline), ``radiosity_rel_rmse``, ``radiosity_abs_bias``,
+``chromaticity_error`` and ``delta_e2000`` (CIEDE2000, through colour-science).
 
 Plot jobs (figures, no scores) reproduce the chapter's figures for the report's gallery: Figs
 1.4-1.6 (shadows of an area source: ``shadow_near``, ``shadow_far``, ``shadow_small``), 1.17

@@ -55,3 +55,41 @@ def test_bad_inputs_are_refused():
 def test_metrics_are_in_the_table():
     for name in ("radiosity_rel_error", "radiosity_rel_rmse", "radiosity_abs_bias", "chromaticity_error"):
         assert name in METRICS and metric(name).better == "lower"
+
+
+def test_delta_e2000_of_grey_levels_is_the_lightness_term_of_ciede2000():
+    """Achromatic pixels: a* = b* = 0, so CIEDE2000 reduces to |L1 - L2| / S_L with
+    S_L = 1 + 0.015 (L - 50)^2 / sqrt(20 + (L - 50)^2) at the mean lightness L (Sharma et al. 2005).
+    The reference is white after scaling (Y = 1, L* = 100); the prediction at half its luminance."""
+    from pbrbench.metrics.interreflection import delta_e2000
+
+    ref = np.full((4, 5, 3), 2.0)
+    pred = 0.5 * ref
+    L1, L2 = 100.0, 116.0 * 0.5 ** (1 / 3) - 16.0
+    Lm = (L1 + L2) / 2
+    want = (L1 - L2) / (1 + 0.015 * (Lm - 50) ** 2 / np.sqrt(20 + (Lm - 50) ** 2))
+    assert delta_e2000(pred, ref) == pytest.approx(want, rel=1e-6)
+    assert delta_e2000(ref, ref) == pytest.approx(0.0, abs=1e-9)
+    assert delta_e2000(pred[..., 0], ref[..., 0]) == pytest.approx(want, rel=1e-6)   # grey images
+    assert delta_e2000(7 * pred, 7 * ref) == pytest.approx(want, rel=1e-6)           # scale-free
+
+
+def test_delta_e2000_sees_colour_bleeding_that_brightness_misses():
+    """A pink floor predicted white at the same luminance: no brightness error to speak of, a
+    colour difference of several just-noticeable differences."""
+    from pbrbench.metrics.interreflection import delta_e2000
+
+    ref = np.broadcast_to([1.0, 0.8, 0.8], (3, 3, 3)).copy()
+    pred = np.full((3, 3, 3), ref.mean())
+    assert delta_e2000(pred, ref) > 5.0
+
+
+def test_delta_e2000_refuses_inputs_it_cannot_read():
+    from pbrbench.metrics.interreflection import delta_e2000
+
+    with pytest.raises(ValueError, match="channels"):
+        delta_e2000(np.ones((3, 3, 2)), np.ones((3, 3, 2)))
+    with pytest.raises(ValueError, match="no light"):
+        delta_e2000(np.ones((3, 3, 3)), np.zeros((3, 3, 3)))
+    with pytest.raises(ValueError, match="mask"):
+        delta_e2000(np.ones((3, 3, 3)), np.ones((3, 3, 3)), np.zeros((3, 3), bool))
