@@ -453,7 +453,8 @@ def read_manifest(folder) -> dict:
     p = Path(folder) / MANIFEST
     if not p.is_file():
         raise UserError(f"{folder}: no {MANIFEST}; pass a folder written by `pbrbench export TASK --out DIR`")
-    m = read_json_file(p)
+    real = resolve_inside(folder, MANIFEST, path=p, where="the manifest")
+    m = read_json_file(real, shown=p)
     if not isinstance(m, dict):
         raise _damaged(p, f"holds {_kind(m)}, expected a JSON object")
     if m.get("format") != FORMAT:
