@@ -17,7 +17,7 @@ Per-quality budgets (e.g. fewer iterations at draft) live in the quality profile
 (:attr:`pbrbench.render.quality.Quality.algorithm_options`) and are merged by
 :meth:`Algorithm.options_for`.  The callable's signature is the task's (``docs/adding.md``).
 
-Plugins (``docs/plugins.md``) are added by :func:`plugin_registry`: the built-ins, then every
+Plugins (``docs/plugins.md``) are added by :func:`pbrbench.plugins.plugin_registry`: the built-ins, then every
 entry point of the group :data:`ENTRY_POINT_GROUP` and every ``--algorithm`` spec
 ``TASK=MODULE:FUNCTION[:NAME]`` (:func:`parse_algorithm_spec`).  An entry point names either a
 ``register(registry)`` function, which receives a :class:`PluginRegistry` and adds entries, or an
@@ -95,6 +95,10 @@ def declared_version(fn: Callable) -> str:
     return str(v) if v is not None else "1"
 
 
+class PluginLoadError(RuntimeError):
+    """The plugin could not be imported or registered (its entries are scored as failed)."""
+
+
 @dataclass(frozen=True)
 class Algorithm:
     """One algorithm of one task (see the module docstring)."""
@@ -144,8 +148,6 @@ class Algorithm:
         kw = {**self.options_for(quality), **kwargs}
         broken = getattr(self.fn, "load_error", None)
         if broken:                      # a plugin that failed to load: no process to start
-            from pbrbench.plugins import PluginLoadError
-
             raise PluginLoadError(broken)
         if self.time_limit is not None:
             from pbrbench.isolation import call_isolated
@@ -374,160 +376,3 @@ def normalize_algorithm_spec(spec: str) -> str:
     if is_path(module):
         module = str(Path(module).expanduser().resolve())
     return f"{task}={module}:{func}" + (f":{name}" if name else "")
-
-
-
-
-def _one_line(e: BaseException) -> str:
-    return f"{type(e).__name__}: {' '.join(str(e).split())}"[:300]
-
-
-def _known_tasks(tasks: Iterable[str]) -> tuple[str, ...]:
-    from pbrbench.tasks import task_names
-
-    return tuple(dict.fromkeys([*task_names(), *tasks]))
-
-
-def _probe(src, tasks, known, origin: str) -> dict:
-    """:func:`pbrbench.plugins.probe` in the isolated child, within the load time limit; a hang,
-    an exit or a crash is ``{"error": "load", "message": ...}``."""
-    from pbrbench.isolation import PluginCrash, PluginTimeout, call_isolated
-    from pbrbench.plugins import load_time_limit, probe
-
-    limit = load_time_limit()
-    try:
-        return call_isolated(probe, (src, tuple(tasks), tuple(known)), time_limit=limit, name=origin,
-                             budget=False)
-    except PluginTimeout:
-        return {"error": "load", "message": f"it did not finish importing and registering within {limit:g} s "
-                                            "(its process was killed; PBRBENCH_PLUGIN_LOAD_LIMIT sets the limit)"}
-    except PluginCrash as e:
-        return {"error": "load", "message": f"its process died while importing and registering it "
-                                            f"({str(e).rpartition('(')[2].rstrip(')')})"}
-    except Exception as e:  # noqa: BLE001 - e.g. options that cannot be sent back
-        return {"error": "load", "message": _one_line(e)}
-
-
-def _entries(src, info: dict, *, origin: str, tasks, time_limit: float | None) -> list[Algorithm]:
-    from pbrbench.plugins import PluginFunction
-
-    out = []
-    for d in info["entries"]:
-        fn = PluginFunction(src, d["task"], d["name"], tasks)
-        out.append(Algorithm(d["name"], d["task"], fn, kind="plugin", version=d["version"] or "1",
-                             options=d["options"], conditions=d["conditions"], description=d["description"],
-                             origin=origin, interface=d["interface"], figures=d["figures"],
-                             fingerprint=src.digest or d["fingerprint"], time_limit=time_limit))
-    return out
-
-
-def _unknown_line(origin: str, unknown: list[str], known) -> str:
-    return (f"{origin}: {'; '.join(unknown)} -- not a pbrbench task (tasks: {', '.join(known)}); "
-            "fix the task name")
-
-
-def add_algorithm_spec(registry: Registry, spec: str, tasks: Iterable[str], *, time_limit: float | None,
-                       log=None) -> Algorithm:
-    """Load one ``--algorithm`` spec into ``registry`` and return its entry.
-
-    The plugin is imported and registered only in the isolated child
-    (:mod:`pbrbench.plugins`).  A spec that cannot be used (a bad form, a task that is not run or
-    does not exist, a missing file, module or function, a name taken) raises ``UserError``; a
-    plugin that raises, exits, crashes or hangs while it is imported is added all the same, as an
-    entry whose every call fails with that reason (one line to ``log``), and the run goes on.
-    """
-    from pbrbench.plugins import PluginFunction, PluginSource, file_source
-
-    task, module, func, name = parse_algorithm_spec(spec)
-    tasks = tuple(tasks)
-    known = _known_tasks(tasks)
-    where = f"--algorithm {spec!r}"
-    if task not in known:
-        raise UserError(f"{where}: {task!r} is not a pbrbench task (tasks: {', '.join(known)}); fix the task name")
-    if task not in tasks:
-        raise UserError(f"{where}: task {task!r} is not part of this run (tasks: {', '.join(tasks)}); add it to --tasks")
-    if is_path(module):
-        path = Path(module).expanduser().resolve()
-        if not path.is_file():
-            raise UserError(f"{path}: no such plugin file")
-        src = file_source(str(path), func, f"{task}:{name or ''}")
-    else:
-        src = PluginSource("module", module, func, f"{task}:{name or ''}")
-    origin = f"--algorithm {normalize_algorithm_spec(spec)}"
-    info = _probe(src, tasks, known, origin)
-    err = info.get("error")
-    if err in ("missing", "attr"):
-        raise UserError(f"{where}: {info['message']}")
-    if err:
-        msg = f"{origin}: the plugin failed to load ({info['message']}); it is scored as failed"
-        if log is not None:
-            log(f"plugin failed: {msg}")
-        shown = name or func.rsplit(".", 1)[-1]
-        alg = Algorithm(shown, task, PluginFunction(src, task, shown, tasks, error=msg),
-                        kind="plugin", version="unloaded", origin=origin,
-                        fingerprint=src.digest or hashlib.sha256(module.encode()).hexdigest()[:10],
-                        time_limit=time_limit)
-    else:
-        (alg,) = _entries(src, info, origin=origin, tasks=tasks, time_limit=time_limit)
-    if (alg.task, alg.name) in registry:
-        old = registry.get(alg.task, alg.name)
-        raise UserError(f"{where}: algorithm {alg.name!r} of task {alg.task!r} is already registered ({old.origin}); "
-                        "give it another name; add :NAME to the spec")
-    return registry.add(alg)
-
-
-def add_entry_points(registry: Registry, tasks: Iterable[str], *, time_limit: float | None,
-                     group: str = ENTRY_POINT_GROUP) -> list[str]:
-    """Add every installed entry point of ``group`` to ``registry``.
-
-    Names and versions come from the entry point's metadata and from a probe in the isolated
-    child (:mod:`pbrbench.plugins`), never from importing the plugin here.  Returns one line per
-    entry point that could not be used (skipped, all its entries with it; the run goes on) or
-    that names a task pbrbench does not have.
-    """
-    from importlib.metadata import entry_points
-
-    from pbrbench.plugins import PluginSource
-
-    tasks = tuple(tasks)
-    known = _known_tasks(tasks)
-    problems = []
-    for ep in entry_points(group=group):
-        dist = getattr(ep, "dist", None)
-        origin = f"entry point {ep.name} = {ep.value}" + (f" ({dist.name} {dist.version})" if dist is not None else "")
-        src = PluginSource("entry", ep.value, "", ep.name)
-        info = _probe(src, tasks, known, origin)
-        if info.get("error"):
-            what = "failed to load" if info["error"] != "attr" else "cannot be used"
-            problems.append(f"{origin}: {what} ({info['message']})")
-            continue
-        if info["unknown"]:
-            problems.append(_unknown_line(origin, info["unknown"], known))
-        new = _entries(src, info, origin=origin, tasks=tasks, time_limit=time_limit)
-        taken = [a for a in new if (a.task, a.name) in registry]
-        if taken:
-            a = taken[0]
-            problems.append(f"{origin}: algorithm {a.name!r} of task {a.task!r} is already registered "
-                            f"({registry.get(a.task, a.name).origin}); give it another name")
-            continue
-        for a in new:
-            registry.add(a)
-    return problems
-
-
-def plugin_registry(tasks: Mapping, specs: Iterable[str] = (), *, entry_points: bool = True,
-                    time_limit: float | None = DEFAULT_TIME_LIMIT, log=None) -> Registry:
-    """The built-in algorithms of ``tasks`` plus the installed plugins (entry points of
-    :data:`ENTRY_POINT_GROUP`, unless ``entry_points`` is false) plus the ``--algorithm``
-    ``specs``.  ``time_limit``: seconds per plugin per job (None: plugins run in-process, without
-    a limit).  No plugin code runs in this process while they are added (:mod:`pbrbench.plugins`).
-    A broken entry point is skipped with a message to ``log``; a bad spec raises ``UserError``."""
-    reg = builtin_registry(tasks)
-    names = list(tasks)
-    if entry_points:
-        for msg in add_entry_points(reg, names, time_limit=time_limit):
-            if log is not None:
-                log(f"plugin skipped: {msg}" if "not a pbrbench task" not in msg else f"plugin: {msg}")
-    for spec in specs:
-        add_algorithm_spec(reg, spec, names, time_limit=time_limit, log=log)
-    return reg

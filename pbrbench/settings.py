@@ -19,6 +19,7 @@ setting                     environment          default
 ``no_cuda``                 PBRBENCH_NO_CUDA     false (use CUDA when a device works)
 ``data_dirs`` (scene data)  PBRBENCH_DATA_DIRS   none: a scene's data files must lie in its own directory
 ``allow_large`` (limits)    PBRBENCH_ALLOW_LARGE false: refuse scene files whose renders exceed the limits
+``plugin_load_limit`` (s)   PBRBENCH_PLUGIN_LOAD_LIMIT 60: seconds to import and register one plugin (in its child)
 ==========================  ===================  ==========================================================
 
 Only the standard library is imported here.
@@ -64,7 +65,9 @@ ENV = {
     "scenes": "PBRBENCH_SCENES", "baselines": "PBRBENCH_BASELINES", "progress": "PBRBENCH_PROGRESS",
     "worker_threads": "PBRBENCH_WORKER_THREADS", "llvm_search": "PBRBENCH_LLVM_SEARCH",
     "no_cuda": "PBRBENCH_NO_CUDA", "data_dirs": "PBRBENCH_DATA_DIRS", "allow_large": "PBRBENCH_ALLOW_LARGE",
+    "plugin_load_limit": "PBRBENCH_PLUGIN_LOAD_LIMIT",
 }
+PLUGIN_LOAD_LIMIT = 60.0   # seconds to import and register one plugin, in its isolated child
 
 
 ARG_FIELDS = ("cache", "out", "store", "variant")   # settings the command line can give
@@ -86,6 +89,7 @@ class Settings:
     no_cuda: bool = False
     data_dirs: tuple[str, ...] | None = None
     allow_large: bool = False
+    plugin_load_limit: float = PLUGIN_LOAD_LIMIT
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -106,6 +110,15 @@ class Settings:
             from pbrbench.errors import UserError
 
             raise UserError(f"PBRBENCH_WORKER_THREADS={wt!r}: give a whole number of threads") from None
+        pl = get("plugin_load_limit")
+        try:
+            pl = float(pl) if pl is not None else PLUGIN_LOAD_LIMIT
+            if not pl > 0:
+                raise ValueError
+        except ValueError:
+            from pbrbench.errors import UserError
+
+            raise UserError(f"PBRBENCH_PLUGIN_LOAD_LIMIT={pl!r}: give the seconds a plugin may take to load, > 0") from None
         ls = get("llvm_search")
         dd = get("data_dirs")
         s = cls(cache=Path(cache), store=Path(get("store")) if get("store") else None, variant=get("variant"),
@@ -115,7 +128,7 @@ class Settings:
                 llvm_search=tuple(ls.split(os.pathsep)) if ls else None,
                 no_cuda=bool(_flag(get("no_cuda"))),
                 data_dirs=tuple(x for x in dd.split(os.pathsep) if x) if dd else None,
-                allow_large=bool(_flag(get("allow_large"))))
+                allow_large=bool(_flag(get("allow_large"))), plugin_load_limit=pl)
         return s.with_(**overrides)
 
     @classmethod

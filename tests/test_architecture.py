@@ -61,8 +61,9 @@ LAYERS = (
     ("render",),                            # Mitsuba: ground truths, their cache and proofs
     ("inverse",),                           # inverse rendering (renders when called)
     ("isolation",),                         # an algorithm call in a child process
-    ("registry", "plugins"),                # algorithm entries; plugins found and loaded
+    ("registry",),                          # algorithm entries
     ("tasks",),                             # inputs, conditions and scores of each problem
+    ("plugins",),                           # the run's registry: built-ins, plugins loaded in children
     ("report",),                            # reads a store it is handed
     ("bench",),                             # plan, run, store, baselines
     ("perf",),                              # speed benchmarks

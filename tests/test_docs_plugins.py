@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 
 from pbrbench.bench.run import RunConfig, run_benchmark
-from pbrbench.registry import Registry, plugin_registry
+from pbrbench.plugins import plugin_registry
+from pbrbench.registry import Registry
 from tests.bench.test_external import TASKS, Synthetic
 from tests.fakes import settings_for
 

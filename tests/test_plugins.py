@@ -19,13 +19,13 @@ import pytest
 
 from pbrbench.bench.run import RunConfig, run_benchmark
 from pbrbench.errors import UserError
+from pbrbench.plugins import plugin_registry
 from pbrbench.registry import (
     Algorithm,
     PluginRegistry,
     Registry,
     algorithm,
     parse_algorithm_spec,
-    plugin_registry,
 )
 from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 from tests.fakes import FakeSource, ps_gt, ps_job, settings_for

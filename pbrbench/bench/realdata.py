@@ -157,7 +157,8 @@ def _digest(files) -> str:
 
 
 def _algorithms(task, methods, specs, extra) -> list:
-    from pbrbench.registry import DEFAULT_TIME_LIMIT, Registry, add_algorithm_spec
+    from pbrbench.plugins import add_algorithm_spec
+    from pbrbench.registry import DEFAULT_TIME_LIMIT, Registry
 
     builtins = [a for a in task.builtin_algorithms() if a.kind in ("method", "baseline") and not a.interface
                 and a.conditions is None]

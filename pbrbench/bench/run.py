@@ -173,7 +173,8 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
     from pbrbench.bench import regress
-    from pbrbench.registry import normalize_algorithm_spec, plugin_registry
+    from pbrbench.plugins import plugin_registry
+    from pbrbench.registry import normalize_algorithm_spec
     from pbrbench.render.quality import get_quality
     from pbrbench.report.figures import slug
     from pbrbench.settings import Settings
@@ -205,7 +206,8 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     if registry is None:   # the built-ins, the installed plugins and the --algorithm specs
         cfg.algorithms = [normalize_algorithm_spec(a) for a in cfg.algorithms]
         registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
-                                   time_limit=cfg.algorithm_time_limit, log=log)
+                                   time_limit=cfg.algorithm_time_limit, log=log,
+                                   load_limit=settings.plugin_load_limit)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
                                          scenes=settings.scenes, render_seed=cfg.render_seed)
     plugins = plugin_versions(registry, tasks)

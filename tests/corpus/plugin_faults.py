@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]
-LOAD_LIMIT = "4"          # seconds to import and register a plugin (PBRBENCH_PLUGIN_LOAD_LIMIT)
+LOAD_LIMIT = 4.0          # seconds to import and register a plugin (Settings.plugin_load_limit)
 
 OK = '''
 import numpy as np
@@ -63,20 +63,6 @@ def _task_and_source():
 
 
 @contextlib.contextmanager
-def _env(**kw):
-    old = {k: os.environ.get(k) for k in kw}
-    os.environ.update({k: str(v) for k, v in kw.items()})
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
-@contextlib.contextmanager
 def _site(tmp: Path, entry_points: str, modules: dict[str, str]):
     """An installed distribution with ``entry_points`` (dist-info on a path put first on sys.path)."""
     site = tmp / "site"
@@ -106,9 +92,8 @@ def run(tmp: Path, specs=(), *, limit=30.0, entry_points=False, task=None, resum
     logs = [] if logs is None else logs
     cfg = RunConfig(quality="draft", algorithms=list(specs), algorithm_time_limit=limit, entry_points=entry_points,
                     resume=resume, report=False)
-    with _env(PBRBENCH_PLUGIN_LOAD_LIMIT=LOAD_LIMIT):
-        o = run_benchmark(cfg, settings=settings_for(tmp), tasks={task.name: task},
-                          source=GroupSource(tmp / "cache"), log=logs.append)
+    o = run_benchmark(cfg, settings=settings_for(tmp).with_(plugin_load_limit=LOAD_LIMIT), tasks={task.name: task},
+                      source=GroupSource(tmp / "cache"), log=logs.append)
     return o, logs
 
 
