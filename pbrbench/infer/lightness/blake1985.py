@@ -33,19 +33,16 @@ from scipy import ndimage
 
 from pbrbench.checks import (
     as_float_array,
-    check_finite,
-    check_mask,
     check_method,
     check_number,
-    check_positive,
 )
 from pbrbench.infer.lightness._common import (
     ANCHORS,
-    anchor_reflectance,
     check_percentile,
     check_threshold,
+    log_gradients,
+    reconstruct,
 )
-from pbrbench.infer.poisson import solve_gradient_field
 
 __all__ = ["EDGE_ILLUMINATION", "EDGE_RULES", "lightness_blake1985"]
 
@@ -74,26 +71,6 @@ def _smooth_part(g: np.ndarray, keep: np.ndarray, m: np.ndarray, axis_valid) -> 
         num = ndimage.uniform_filter(g[..., c] * wgt, size, mode="constant")
         out[..., c] = np.where(den > 1e-9, num / np.where(den > 1e-9, den, 1.0), 0.0)
     return out
-
-
-def _valid_pixels(img: np.ndarray, m: np.ndarray, min_value, name: str) -> np.ndarray:
-    """Mask of pixels whose log is defined; ValueError for NaN/inf or non-positive values."""
-    check_finite(img, name, where=m)
-    chan_min = img if img.ndim == 2 else img.min(axis=-1)
-    if min_value is None:
-        bad = m & ~(chan_min > 0)
-        if bad.any():
-            raise ValueError(
-                f"{name}: {int(bad.sum())} pixel(s) inside the mask are <= 0, where the log is "
-                "undefined; exclude them with mask= or pass min_value= (e.g. 1e-6) to drop "
-                "pixels below it from the domain")
-        return m
-    floor = check_positive(min_value, "min_value")
-    m = m & (chan_min >= floor)
-    if not m.any():
-        raise ValueError(f"{name}: no pixel inside the mask is >= min_value={floor:g}; "
-                         "lower min_value or check the image scale")
-    return m
 
 
 def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "brightest",
@@ -196,21 +173,7 @@ def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "bright
     t = check_threshold(threshold)
     mean_lightness = check_number(mean_lightness, "mean_lightness", lo=0.0, lo_open=True, hi=1.0)
     pct = check_percentile(brightest_percentile)
-    grey = img.ndim == 2
-    x = img[..., None] if grey else img
-    h, w, nc = x.shape
-    m = check_mask(mask, (h, w))
-    m = _valid_pixels(img, m, min_value, "image")
-    full = bool(m.all())
-
-    logc = np.log(x) if full else np.where(m[..., None], np.log(np.where(m[..., None], x, 1.0)), 0.0)
-    gx = np.zeros_like(logc)
-    gy = np.zeros_like(logc)
-    gx[:, :-1] = logc[:, 1:] - logc[:, :-1]
-    gy[:-1, :] = logc[1:, :] - logc[:-1, :]
-    if not full:  # differences that leave the domain are not equations
-        gx[:, :-1] *= (m[:, :-1] & m[:, 1:])[..., None]
-        gy[:-1, :] *= (m[:-1, :] & m[1:, :])[..., None]
+    x, m, gx, gy = log_gradients(img, mask, min_value)
 
     if edge_rule == "magnitude":
         e = np.sqrt(np.mean(gx * gx + gy * gy, axis=-1))
@@ -224,17 +187,6 @@ def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "bright
     gx *= keep_x[..., None]
     gy *= keep_y[..., None]
 
-    sol_mask = None if full else m
-    log_refl = np.stack([solve_gradient_field(gx[..., c], gy[..., c], mask=sol_mask, method=solver)
-                         for c in range(nc)], axis=-1)
-    refl = anchor_reflectance(log_refl, m, anchor, mean_lightness, pct)
-    if full:
-        shading = x / refl
-    else:
-        refl = np.where(m[..., None], refl, 0.0)
-        shading = np.where(m[..., None], x / np.where(m[..., None], refl, 1.0), 0.0)
-    if grey:
-        return refl[..., 0], shading[..., 0]
-    return refl, shading
+    return reconstruct(x, m, gx, gy, anchor, mean_lightness, pct, solver, grey=img.ndim == 2)
 
 

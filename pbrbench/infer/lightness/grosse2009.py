@@ -18,15 +18,14 @@ import itertools
 
 import numpy as np
 
-from pbrbench.checks import as_float_array, check_mask, check_method, check_positive
+from pbrbench.checks import as_float_array, check_method, check_positive
 from pbrbench.infer.lightness._common import (
     ANCHORS,
-    anchor_reflectance,
     check_percentile,
     check_threshold,
+    log_gradients,
+    reconstruct,
 )
-from pbrbench.infer.lightness.blake1985 import _valid_pixels
-from pbrbench.infer.poisson import solve_gradient_field
 
 __all__ = ["lightness_grosse2009", "select_thresholds_hold_one_out"]
 
@@ -104,21 +103,7 @@ def lightness_grosse2009(image, *, threshold: float = 0.05, chromaticity_thresho
                          f"got {chromaticity_threshold!r}")
     mean_lightness = check_positive(mean_lightness, "mean_lightness")
     pct = check_percentile(brightest_percentile)
-    grey = img.ndim == 2
-    x = img[..., None] if grey else img
-    h, w, nc = x.shape
-    m = check_mask(mask, (h, w))
-    m = _valid_pixels(img, m, min_value, "image")
-    full = bool(m.all())
-
-    logc = np.log(x) if full else np.where(m[..., None], np.log(np.where(m[..., None], x, 1.0)), 0.0)
-    gx = np.zeros_like(logc)
-    gy = np.zeros_like(logc)
-    gx[:, :-1] = logc[:, 1:] - logc[:, :-1]
-    gy[:-1, :] = logc[1:, :] - logc[:-1, :]
-    if not full:  # differences that leave the domain are not equations
-        gx[:, :-1] *= (m[:, :-1] & m[:, 1:])[..., None]
-        gy[:-1, :] *= (m[:-1, :] & m[1:, :])[..., None]
+    x, m, gx, gy = log_gradients(img, mask, min_value)
     keep = []
     for g in (gx, gy):
         lum = g.mean(axis=-1)
@@ -127,18 +112,7 @@ def lightness_grosse2009(image, *, threshold: float = 0.05, chromaticity_thresho
     gx *= keep[0][..., None]
     gy *= keep[1][..., None]
 
-    sol_mask = None if full else m
-    log_refl = np.stack([solve_gradient_field(gx[..., c], gy[..., c], mask=sol_mask, method=solver)
-                         for c in range(nc)], axis=-1)
-    refl = anchor_reflectance(log_refl, m, anchor, mean_lightness, pct)
-    if full:
-        shading = x / refl
-    else:
-        refl = np.where(m[..., None], refl, 0.0)
-        shading = np.where(m[..., None], x / np.where(m[..., None], refl, 1.0), 0.0)
-    if grey:
-        return refl[..., 0], shading[..., 0]
-    return refl, shading
+    return reconstruct(x, m, gx, gy, anchor, mean_lightness, pct, solver, grey=img.ndim == 2)
 
 
 def select_thresholds_hold_one_out(images, reflectances, shadings, masks=None, *, score=None, thresholds=None,

@@ -21,10 +21,15 @@ __all__ = [
     "accumulate",
     "check_intensities",
     "check_lights",
+    "DOCS",
     "check_sums",
+    "cofactors",
     "finish",
+    "least_squares",
+    "measurements",
     "outer6",
     "prepare",
+    "reject_outliers",
     "scatter",
     "sym_solve",
     "weighted_fit",
@@ -91,11 +96,12 @@ def check_intensities(intensities, k: int, nc: int) -> np.ndarray:
     return np.broadcast_to(e.reshape(k, -1), (k, nc)).astype(float)
 
 
-def sym_solve(a, b):
-    """Solve batched symmetric 3x3 systems ``A x = b`` by cofactors (pixels along the last axis).
+def cofactors(a):
+    """Cofactors and determinant of batched symmetric 3x3 matrices (pixels along the last axis).
 
-    ``a``: (6, N) packed as (xx, yy, zz, xy, xz, yz); ``b``: (3, N).
-    Returns ``(x, ok)``: (3, N) solutions and a flag for well-conditioned systems (others 0).
+    ``a``: (6, N) packed as (xx, yy, zz, xy, xz, yz).  Returns ``(c00, c01, c02, c11, c12, c22,
+    det)``: the adjugate ``adj(A) = det(A) A^{-1}`` (symmetric, so six entries) and
+    ``det(A) = a_xx c00 + a_xy c01 + a_xz c02``.
     """
     axx, ayy, azz, axy, axz, ayz = a
     c00 = ayy * azz - ayz * ayz
@@ -105,7 +111,17 @@ def sym_solve(a, b):
     c12 = axy * axz - axx * ayz
     c22 = axx * ayy - axy * axy
     det = axx * c00 + axy * c01 + axz * c02
-    tr = axx + ayy + azz
+    return c00, c01, c02, c11, c12, c22, det
+
+
+def sym_solve(a, b):
+    """Solve batched symmetric 3x3 systems ``A x = b`` by cofactors (pixels along the last axis).
+
+    ``a``: (6, N) packed as (xx, yy, zz, xy, xz, yz); ``b``: (3, N).
+    Returns ``(x, ok)``: (3, N) solutions and a flag for well-conditioned systems (others 0).
+    """
+    c00, c01, c02, c11, c12, c22, det = cofactors(a)
+    tr = a[0] + a[1] + a[2]
     ok = det > 1e-9 * (tr * (1.0 / 3.0)) ** 3
     inv_det = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
     b0, b1, b2 = b
@@ -308,3 +324,83 @@ def finish(p: Problem, g, ok, amat, bmat, q) -> PhotometricStereoResult:
     return PhotometricStereoResult(
         normals=scatter(p, nrm), albedo=albedo, residual=scatter(p, np.where(valid, res, 0.0)),
         n_used=scatter(p, n_used, np.int64), valid=scatter(p, valid, bool))
+
+
+def measurements(p: Problem):
+    """The start of every robust method: ``(jsum, used, g)``.
+
+    ``jsum`` (K, N) the intensity-normalised channel sums, ``used`` (K, N) the lit, unsaturated
+    measurements (:func:`accumulate`), and ``g`` (3, N) their least-squares fit (0 where
+    ill-conditioned); NaN/inf inside the mask are reported (:func:`check_sums`).
+    """
+    amat, _, bsum, q, jsum, used = accumulate(p, keep=True)
+    check_sums(p, bsum, q)
+    g, _ = sym_solve(amat[:6], bsum)
+    return jsum, used, g
+
+
+def least_squares(p: Problem, used_in=None, fallback=None) -> PhotometricStereoResult:
+    """Per-pixel least squares on the used measurements, as a :class:`PhotometricStereoResult`.
+
+    ``used_in`` (K, N): the measurements to use (default: :func:`accumulate`'s classification,
+    and then NaN/inf inside the mask are reported); ``fallback`` (3, N): the solution kept where
+    the least-squares system is ill-conditioned (default: none, those pixels are not valid).
+    """
+    amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used_in)
+    if used_in is None:
+        check_sums(p, bsum, q)
+    g, ok = sym_solve(amat[:6], bsum)
+    if fallback is not None:
+        g = np.where(ok, g, fallback)
+    return finish(p, g, ok, amat, bmat, q)
+
+
+def reject_outliers(used, r, free, scale, min_lights: int):
+    """The used measurements less the outliers: residual ``r`` > 5 robust standard deviations.
+
+    The noise is ``sigma = 1.4826 median(r)`` over the ``free`` measurements of the whole image
+    (those the robust fit did not interpolate exactly), and a measurement is an outlier when
+    ``r > max(5 sigma, 1e-6 scale)``.  A pixel never keeps fewer than ``min_lights``: one that
+    would keeps all its used lights (on near-noise-free renders the image-wide sigma is tiny and
+    the rejection would leave 1-2 lights on every pixel whose residual is a little larger:
+    ps_cup direct, 6 lights).
+    """
+    sigma = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
+    inl = used & (r <= np.maximum(5.0 * sigma, 1e-6 * scale))
+    few = inl.sum(axis=0) < min_lights
+    return np.where(few[None, :], used, inl)
+
+
+# numpydoc fragments shared by the methods' docstrings (pbrbench.infer._docstring)
+DOCS = {
+    "inputs": """\
+images : (K, H, W) or (K, H, W, C) array
+    Linear images, one per light.
+lights : (K, 3) array
+    Source vectors in the camera frame (x right, y up, z toward the camera), pointing from
+    the surface toward the source; the length scales the intensity.""",
+    "options": """\
+mask : (H, W) bool, optional
+    Pixels to solve (default all).
+intensities : (K,) or (K, C) array, optional
+    Source intensities multiplying ``lights`` (per channel for coloured sources), all > 0.
+shadow_threshold : float
+    A measurement is treated as shadowed and dropped when its intensity-normalised value is
+    <= ``shadow_threshold`` times the pixel's brightest normalised measurement (0 drops only
+    exact zeros and negatives). Shadowed measurements are clamped, not linear: leaving them in
+    biases the normal.
+saturation : float, optional
+    Measurements >= this value (in any channel) are dropped. Default: none.
+min_lights : int
+    Minimum number of used lights for a valid pixel (>= 3).""",
+    "result": """\
+PhotometricStereoResult
+    ``normals`` (H, W, 3), ``albedo`` (H, W) or (H, W, C), ``residual`` (H, W), ``n_used``
+    (H, W), ``valid`` (H, W). Colour: one normal shared by the channels (from the sum of the
+    intensity-normalised channels), albedo per channel (least squares given the normal).""",
+    "raises": """\
+ValueError
+    On bad shapes, non-finite input inside the mask, non-positive intensities,
+    ``min_lights < 3``, or a degenerate light matrix (fewer than 3 lights, or all directions
+    coplanar / collinear).""",
+}

@@ -9,13 +9,14 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_int
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
+    DOCS,
     PhotometricStereoResult,
-    accumulate,
-    check_sums,
-    finish,
+    least_squares,
+    measurements,
     prepare,
-    sym_solve,
+    reject_outliers,
     weighted_fit,
 )
 
@@ -24,6 +25,7 @@ __all__ = ["photometric_stereo_ikehata2012_l1"]
 VERSION = "2"  # outlier rejection never leaves fewer than min_lights inliers
 
 
+@docstring(DOCS)
 def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                                       saturation: float | None = None, min_lights: int = 3,
                                       max_iter: int = 50) -> PhotometricStereoResult:
@@ -46,8 +48,8 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
 
     Parameters
     ----------
-    images, lights, mask, intensities, shadow_threshold, saturation, min_lights
-        As for :func:`~pbrbench.infer.photometric_stereo.woodham1980.photometric_stereo_woodham1980`.
+    %(inputs)s
+    %(options)s
     max_iter : int
         Iterations of the reweighted solver (>= 1).
 
@@ -70,9 +72,7 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     p = prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights)
     max_iter = check_int(max_iter, "max_iter", 1)
     s, s7 = p.s, p.s7
-    amat, bmat, bsum, q, jsum, used = accumulate(p, keep=True)
-    check_sums(p, bsum, q)
-    g, ok = sym_solve(amat[:6], bsum)
+    jsum, used, g = measurements(p)
 
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
     delta = 1e-9 * scale
@@ -91,16 +91,7 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     # all pixels from the residuals the L1 fit did not interpolate exactly (an L1 fit passes
     # through >= 3 measurements, whose zero residuals say nothing about the noise).
     free = used & (r > 1e3 * delta)
-    sigma = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
-    inl = used & (r <= np.maximum(5.0 * sigma, 1e-6 * scale))
-    # never reject below min_lights: a pixel left with fewer inliers keeps its used lights
-    # (on near-noise-free renders the image-wide sigma is tiny and the rejection would leave
-    # 1-2 lights on every pixel whose residual is a little larger: ps_cup direct, 6 lights)
-    few = inl.sum(axis=0) < p.min_lights
-    used = np.where(few[None, :], used, inl)
+    used = reject_outliers(used, r, free, scale, p.min_lights)
     del r, wl1, wsum, free
     # least-squares polish on the inliers (Gaussian-efficient, exact when inliers are exact)
-    amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used)
-    g_ls, ok = sym_solve(amat[:6], bsum)
-    g = np.where(ok, g_ls, g)
-    return finish(p, g, ok, amat, bmat, q)
+    return least_squares(p, used_in=used, fallback=g)

@@ -10,13 +10,15 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_int, check_number
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
+    DOCS,
     PhotometricStereoResult,
-    accumulate,
-    check_sums,
-    finish,
+    cofactors,
+    least_squares,
+    measurements,
     prepare,
-    sym_solve,
+    reject_outliers,
     weighted_fit,
 )
 
@@ -25,20 +27,14 @@ __all__ = ["photometric_stereo_ikehata2012_sbl"]
 
 def _quad_inv(a, s):
     """``h_k = s_k^T A^{-1} s_k`` for packed symmetric 3x3 ``a`` (6, N) and lights ``s`` (K, 3)."""
-    axx, ayy, azz, axy, axz, ayz = a
-    c00 = ayy * azz - ayz * ayz
-    c01 = axz * ayz - axy * azz
-    c02 = axy * ayz - axz * ayy
-    c11 = axx * azz - axz * axz
-    c12 = axy * axz - axx * ayz
-    c22 = axx * ayy - axy * axy
-    det = axx * c00 + axy * c01 + axz * c02
+    c00, c01, c02, c11, c12, c22, det = cofactors(a)
     inv_det = np.divide(1.0, det, out=np.zeros_like(det), where=det > 0)
     sx, sy, sz = s[:, 0:1], s[:, 1:2], s[:, 2:3]
     return (c00 * sx * sx + c11 * sy * sy + c22 * sz * sz
             + 2 * (c01 * sx * sy + c02 * sx * sz + c12 * sy * sz)) * inv_det
 
 
+@docstring(DOCS)
 def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                                        saturation: float | None = None, min_lights: int = 3, noise: float = 1e-3,
                                        max_iter: int = 100) -> PhotometricStereoResult:
@@ -70,8 +66,8 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
 
     Parameters
     ----------
-    images, lights, mask, intensities, shadow_threshold, saturation, min_lights
-        As for :func:`~pbrbench.infer.photometric_stereo.woodham1980.photometric_stereo_woodham1980`.
+    %(inputs)s
+    %(options)s
     noise : float
         ``\sqrt\lambda`` as a fraction of each pixel's brightest measurement (> 0).
     max_iter : int
@@ -97,9 +93,7 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
     sig = check_number(noise, "noise", lo=0.0, lo_open=True)
     n_iter = check_int(max_iter, "max_iter", 1)
     s, s7 = p.s, p.s7
-    amat, bmat, bsum, q, jsum, used = accumulate(p, keep=True)
-    check_sums(p, bsum, q)
-    g, ok = sym_solve(amat[:6], bsum)
+    jsum, used, g = measurements(p)
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
     lam = (sig * scale) ** 2
     usedf = used.astype(float)
@@ -115,14 +109,5 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
         gamma = np.where(used, mu**2 + np.maximum(sigma_kk, 0.0), 0.0)
     r = np.abs(jsum - s @ g)
     free = used & (r > 1e-9 * scale)
-    sig_r = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
-    inl = used & (r <= np.maximum(5.0 * sig_r, 1e-6 * scale))
-    # never reject below min_lights: a pixel left with fewer inliers keeps its used lights
-    # (on near-noise-free renders the image-wide sigma is tiny and the rejection would leave
-    # 1-2 lights on every pixel whose residual is a little larger: ps_cup direct, 6 lights)
-    few = inl.sum(axis=0) < p.min_lights
-    used = np.where(few[None, :], used, inl)
-    amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used)
-    g_ls, ok = sym_solve(amat[:6], bsum)
-    g = np.where(ok, g_ls, g)
-    return finish(p, g, ok, amat, bmat, q)
+    used = reject_outliers(used, r, free, scale, p.min_lights)
+    return least_squares(p, used_in=used, fallback=g)

@@ -7,18 +7,18 @@ Approach*, Algorithm 1.2.
 
 from __future__ import annotations
 
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
+    DOCS,
     PhotometricStereoResult,
-    accumulate,
-    check_sums,
-    finish,
+    least_squares,
     prepare,
-    sym_solve,
 )
 
 __all__ = ["photometric_stereo_woodham1980"]
 
 
+@docstring(DOCS)
 def photometric_stereo_woodham1980(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                                    saturation: float | None = None, min_lights: int = 3) -> PhotometricStereoResult:
     r"""Normals and albedo of a Lambertian surface by per-pixel least squares (Woodham 1980).
@@ -33,46 +33,20 @@ def photometric_stereo_woodham1980(images, lights, *, mask=None, intensities=Non
 
     Parameters
     ----------
-    images : (K, H, W) or (K, H, W, C) array
-        Linear images, one per light.
-    lights : (K, 3) array
-        Source vectors in the camera frame (x right, y up, z toward the camera), pointing from
-        the surface toward the source; the length scales the intensity.
-    mask : (H, W) bool, optional
-        Pixels to solve (default all).
-    intensities : (K,) or (K, C) array, optional
-        Source intensities multiplying ``lights`` (per channel for coloured sources), all > 0.
-    shadow_threshold : float
-        A measurement is treated as shadowed and dropped when its intensity-normalised value is
-        <= ``shadow_threshold`` times the pixel's brightest normalised measurement (0 drops only
-        exact zeros and negatives). Shadowed measurements are clamped, not linear: leaving them in
-        biases the normal.
-    saturation : float, optional
-        Measurements >= this value (in any channel) are dropped. Default: none.
-    min_lights : int
-        Minimum number of used lights for a valid pixel (>= 3).
+    %(inputs)s
+    %(options)s
 
     Returns
     -------
-    PhotometricStereoResult
-        ``normals`` (H, W, 3), ``albedo`` (H, W) or (H, W, C), ``residual`` (H, W), ``n_used``
-        (H, W), ``valid`` (H, W). Colour: one normal shared by the channels (from the sum of the
-        intensity-normalised channels), albedo per channel (least squares given the normal).
+    %(result)s
 
     Raises
     ------
-    ValueError
-        On bad shapes, non-finite input inside the mask, non-positive intensities,
-        ``min_lights < 3``, or a degenerate light matrix (fewer than 3 lights, or all directions
-        coplanar / collinear).
+    %(raises)s
 
     References
     ----------
     R. J. Woodham, "Photometric method for determining surface orientation from multiple
     images", Optical Engineering 19(1), 1980.
     """
-    p = prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights)
-    amat, bmat, bsum, q, _, _ = accumulate(p)
-    check_sums(p, bsum, q)
-    g, ok = sym_solve(amat[:6], bsum)
-    return finish(p, g, ok, amat, bmat, q)
+    return least_squares(prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights))

@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_int, check_number
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
+    DOCS,
     PhotometricStereoResult,
-    accumulate,
-    check_sums,
-    finish,
+    least_squares,
+    measurements,
     prepare,
-    sym_solve,
 )
 
 __all__ = ["photometric_stereo_wu2010"]
@@ -35,6 +35,7 @@ def _svt(X, tau):
     return (U * f) @ (U.T @ X), int(keep.sum())
 
 
+@docstring(DOCS)
 def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                               saturation: float | None = None, min_lights: int = 3, sparsity: float | None = None,
                               max_iter: int = 500, tol: float = 1e-7) -> PhotometricStereoResult:
@@ -59,8 +60,8 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
 
     Parameters
     ----------
-    images, lights, mask, intensities, shadow_threshold, saturation, min_lights
-        As for the least-squares method.
+    %(inputs)s
+    %(options)s
     sparsity : float or None
         ``\lambda``; default ``1 / \sqrt{N}`` (Wu et al.; the usual RPCA choice
         ``1 / \sqrt{\max(K, N)}``).
@@ -87,8 +88,7 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
     p = prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights)
     n_iter = check_int(max_iter, "max_iter", 1)
     tol = check_number(tol, "tol", lo=0.0, lo_open=True)
-    amat, bmat, bsum, q, jsum, used = accumulate(p, keep=True)
-    check_sums(p, bsum, q)
+    jsum, used, _ = measurements(p)
     K, N = jsum.shape
     lam = 1.0 / np.sqrt(max(K, N)) if sparsity is None else check_number(sparsity, "sparsity", lo=0.0, lo_open=True)
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
@@ -117,6 +117,4 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
         trusted = used & (np.abs(E) <= max(5.0 * sig, 1e-3))
         few = trusted.sum(axis=0) < 3  # keep a pixel solvable: fall back to its used lights
         used = np.where(few[None, :], used, trusted)
-    amat, bmat, bsum, q, _, _ = accumulate(p, used_in=used)
-    g, ok = sym_solve(amat[:6], bsum)
-    return finish(p, g, ok, amat, bmat, q)
+    return least_squares(p, used_in=used)
