@@ -219,7 +219,7 @@ def run_ps(args) -> int:
 
     from pbrbench import io
     from pbrbench.infer.integration import integrate_normals
-    from pbrbench.infer.photometric_stereo import photometric_stereo
+    from pbrbench.infer.photometric_stereo import solve_photometric_stereo
     from pbrbench.metrics.normals import angular_error_stats, largest_component
 
     if args.drop_first < 0:
@@ -232,7 +232,7 @@ def run_ps(args) -> int:
     st.next(f"{len(imgs)} images {imgs.shape[1]}x{imgs.shape[2]} ({layout})")
     t0 = time.perf_counter()
     try:
-        res = photometric_stereo(imgs, lights, method=args.method, mask=mask)
+        res = solve_photometric_stereo(imgs, lights, method=args.method, mask=mask)
     except ValueError as e:
         raise UserError(f"{args.dir}: photometric stereo ({args.method}): {e}") from None
     t_ps = time.perf_counter() - t0
@@ -326,7 +326,7 @@ def run_retinex(args) -> int:
     import numpy as np
 
     from pbrbench import io
-    from pbrbench.infer.lightness import lightness
+    from pbrbench.infer.lightness import estimate_lightness
 
     st = _Stages("retinex", ["load", f"decompose ({args.method})", "write"])
     with _data_warnings([]) as seen:
@@ -339,7 +339,7 @@ def run_retinex(args) -> int:
         raise UserError(f"{args.image}: no pixel > 0 (inside the mask); retinex works on log intensities")
     t0 = time.perf_counter()
     try:
-        refl, shad = lightness(np.where((m[..., None] if img.ndim == 3 else m), img, 0.0), method=args.method,
+        refl, shad = estimate_lightness(np.where((m[..., None] if img.ndim == 3 else m), img, 0.0), method=args.method,
                                mask=m, **opts)
     except ValueError as e:
         raise UserError(f"{args.image}: retinex ({args.method}): {e}") from None

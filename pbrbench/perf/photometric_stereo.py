@@ -32,7 +32,7 @@ import numpy as np
 
 from pbrbench.infer.integration import METHODS as INTEGRATION_METHODS
 from pbrbench.infer.integration import integrate_normals
-from pbrbench.infer.photometric_stereo import photometric_stereo
+from pbrbench.infer.photometric_stereo import solve_photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field
 from pbrbench.metrics.normals import angular_error_stats, height_rmse
 from pbrbench.perf import main_for
@@ -74,7 +74,7 @@ def _timing_rows(size, repeats):
     s = on_grid("sphere", size, half_width=1.05)
     lights = ring_lights(12)
     imgs = lambertian_images(s.normals, 0.8, lights, mask=s.mask)
-    wall, cpu, res = _timed(lambda: photometric_stereo(imgs, lights, mask=s.mask), repeats)
+    wall, cpu, res = _timed(lambda: solve_photometric_stereo(imgs, lights, mask=s.mask), repeats)
     rows += [_row(case, "woodham1980", "time_wall", wall, "s"), _row(case, "woodham1980", "time_cpu", cpu, "s"),
              _row(case, "woodham1980", "mean_angular_error",
                   angular_error_stats(res.normals, s.normals, s.mask & res.valid)["mean"], "deg")]
@@ -122,7 +122,7 @@ def _sphere_rows(size):
     lit3 = m & ((n @ CHAPTER_LIGHTS.T > 0).sum(-1) >= 3)
     imgs = lambertian_images(n, 0.8, CHAPTER_LIGHTS, mask=m)
     case = f"sphere {size}x{size}, chapter's 5 lights, noise-free, lit by >= 3 (target < 0.01 deg)"
-    r = photometric_stereo(imgs, CHAPTER_LIGHTS, mask=m)
+    r = solve_photometric_stereo(imgs, CHAPTER_LIGHTS, mask=m)
     rows.append(_row(case, "woodham1980", "mean_angular_error",
                      angular_error_stats(r.normals, n, lit3 & r.valid)["mean"], "deg"))
     rows.append(_row(case, "woodham1980", "valid_fraction", (lit3 & r.valid).sum() / lit3.sum()))
@@ -134,7 +134,7 @@ def _sphere_rows(size):
 
     q = np.round(imgs / imgs.max() * 255.0)
     case = f"sphere {size}x{size}, chapter's 5 lights, 8-bit quantised (target < 0.2 deg)"
-    r = photometric_stereo(q, CHAPTER_LIGHTS, mask=m, saturation=255.5)
+    r = solve_photometric_stereo(q, CHAPTER_LIGHTS, mask=m, saturation=255.5)
     rows.append(_row(case, "woodham1980", "mean_angular_error",
                      angular_error_stats(r.normals, n, lit3 & r.valid)["mean"], "deg"))
 
@@ -143,7 +143,7 @@ def _sphere_rows(size):
         noisy = imgs + rng.normal(scale=pct / 100 * imgs.max(), size=imgs.shape)
         case = f"sphere {size}x{size}, chapter's 5 lights, Gaussian noise {pct:g} % of max"
         for method in ("woodham1980", "ikehata2012_l1"):
-            r = photometric_stereo(noisy, CHAPTER_LIGHTS, mask=m, method=method)
+            r = solve_photometric_stereo(noisy, CHAPTER_LIGHTS, mask=m, method=method)
             st = angular_error_stats(r.normals, n, lit3 & r.valid)
             rows += [_row(case, method, "mean_angular_error", st["mean"], "deg"),
                      _row(case, method, "median_angular_error", st["median"], "deg"),
@@ -160,7 +160,7 @@ def _highlight_rows(size, shininess=300.0):
     rows = []
     case = f"glossy sphere {size}x{size}, K=12, Blinn-Phong n={shininess:g}, highlight pixels"
     for method in ("woodham1980", "ikehata2012_l1"):
-        wall, cpu, r = _timed(lambda method=method: photometric_stereo(imgs + spec, lights, mask=s.mask,
+        wall, cpu, r = _timed(lambda method=method: solve_photometric_stereo(imgs + spec, lights, mask=s.mask,
                                                                        method=method), 1)
         st = angular_error_stats(r.normals, s.normals, hl & r.valid)
         rows += [_row(case, method, "mean_angular_error", st["mean"], "deg"),
@@ -198,7 +198,7 @@ def _robust_rows(size):
         imgs, normals, lights, mask = robust_stack(surface, size, 20)
         case = f"{surface} {size}x{size}, K=20, highlights + occluders + 0.2 % noise"
         for method in METHODS:
-            wall, cpu, r = _timed(lambda method=method, i=imgs, li=lights, m=mask: photometric_stereo(
+            wall, cpu, r = _timed(lambda method=method, i=imgs, li=lights, m=mask: solve_photometric_stereo(
                 i, li, mask=m, method=method), 1)
             st = angular_error_stats(r.normals, normals, mask & r.valid)
             rows += [_row(case, method, "mean_angular_error", st["mean"], "deg"),

@@ -122,13 +122,13 @@ def test_scale_covariant_methods_answer_correctly_at_extreme_scales(scale):
     from tests.corpus.infer_fuzz import _base
 
     B = _base()
-    ref = I.photometric_stereo(B["ps"], B["lights"], mask=B["mask"])
+    ref = I.solve_photometric_stereo(B["ps"], B["lights"], mask=B["mask"])
     for fn in (I.photometric_stereo_woodham1980, I.photometric_stereo_ikehata2012_l1, I.photometric_stereo_naive_lstsq):
         r0 = fn(B["ps"], B["lights"], mask=B["mask"])
         r = fn(B["ps"] * scale, B["lights"], mask=B["mask"])
         assert np.allclose(r.normals, r0.normals, atol=1e-9) and np.array_equal(r.valid, r0.valid)
         assert np.allclose(r.albedo / scale, r0.albedo, rtol=1e-9, atol=0)
-    r = I.photometric_stereo(B["ps"], B["lights"] * 1e-3, mask=B["mask"])
+    r = I.solve_photometric_stereo(B["ps"], B["lights"] * 1e-3, mask=B["mask"])
     assert np.allclose(r.normals, ref.normals, atol=1e-9)
     z0 = I.solve_gradient_field(B["p"], B["q"], mask=B["mask"])
     z = I.solve_gradient_field(B["p"] * scale, B["q"] * scale, mask=B["mask"])

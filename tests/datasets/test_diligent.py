@@ -93,7 +93,7 @@ def test_a_mat_file_with_another_variable_name_and_misshaped_normals(tmp_path):
 
 
 def test_infer_photometric_stereo_on_a_diligent_folder(tmp_path, capsys):
-    from pbrbench.infer.photometric_stereo import photometric_stereo
+    from pbrbench.infer.photometric_stereo import solve_photometric_stereo
     from pbrbench.io import read_image, read_png
 
     d = tmp_path / "bumpsPNG"
@@ -104,7 +104,7 @@ def test_infer_photometric_stereo_on_a_diligent_folder(tmp_path, capsys):
     res = json.loads((tmp_path / "out" / "result.json").read_text())
     assert res["angular_error_deg"]["mean"] < 0.05 and res["images"] == 12 and res["layout"] == "DiLiGenT layout"
     obj = load_diligent(d)
-    want = photometric_stereo(obj.grey, obj.lights, mask=obj.mask).normals.astype(np.float32)
+    want = solve_photometric_stereo(obj.grey, obj.lights, mask=obj.mask).normals.astype(np.float32)
     assert np.array_equal(read_image(tmp_path / "out" / "normals.exr"), want)
     for f in ("normals.png", "albedo.exr", "albedo.png", "height.exr", "height.png", "valid.png"):
         assert (tmp_path / "out" / f).is_file(), f

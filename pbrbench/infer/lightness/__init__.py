@@ -9,7 +9,7 @@ is given).  The known failure is a sharp illumination edge (a cast shadow), whic
 threshold and is taken for paint.
 
 Image methods share the signature ``fn(image, *, <own options>) -> (reflectance, shading)``;
-:data:`METHODS` maps a name to each and :func:`lightness` dispatches by name:
+:data:`METHODS` maps a name to each and :func:`estimate_lightness` dispatches by name:
 
 - ``"blake1985"``: :func:`lightness_blake1985` (:mod:`~pbrbench.infer.lightness.blake1985`), the
   chapter's Algorithm 1.1: thresholded log-gradients, least-squares (Poisson) reconstruction,
@@ -57,7 +57,7 @@ __all__ = [
     "EDGE_ILLUMINATION",
     "EDGE_RULES",
     "METHODS",
-    "lightness",
+    "estimate_lightness",
     "lightness_1d_horn1974",
     "lightness_blake1985",
     "lightness_grosse2009",
@@ -75,8 +75,12 @@ retinex = lightness_blake1985
 retinex_1d = lightness_1d_horn1974
 
 
-def lightness(image, *, method: str = "blake1985", **options):
-    """Separate a linear image into reflectance and shading with the method ``method``.
+def estimate_lightness(image, *, method: str = "blake1985", **options):
+    r"""Separate a linear image into reflectance and shading with the method ``method``.
+
+    .. math:: \log C = \log k + \log I + \log \rho
+
+    with the large log-gradients taken for albedo edges (module docstring).
 
     Parameters
     ----------
@@ -100,4 +104,4 @@ def lightness(image, *, method: str = "blake1985", **options):
     A. Blake, "Boundary conditions for lightness computation in Mondrian world", CVGIP 1985
     (the default method).
     """
-    return call_method(METHODS, method, "lightness", image, **options)
+    return call_method(METHODS, method, "estimate_lightness", image, **options)

@@ -3,7 +3,12 @@
 import numpy as np
 import pytest
 
-from pbrbench.infer.lightness import METHODS, lightness, lightness_blake1985, lightness_grosse2009
+from pbrbench.infer.lightness import (
+    METHODS,
+    estimate_lightness,
+    lightness_blake1985,
+    lightness_grosse2009,
+)
 from pbrbench.shading.mondrian import mondrian_scene
 
 
@@ -14,7 +19,7 @@ def image():
 
 def test_table_and_default(image):
     assert METHODS == {"blake1985": lightness_blake1985, "grosse2009": lightness_grosse2009}
-    r, s = lightness(image)
+    r, s = estimate_lightness(image)
     r0, s0 = lightness_blake1985(image)
     np.testing.assert_array_equal(r, r0)
     np.testing.assert_array_equal(s, s0)
@@ -22,20 +27,20 @@ def test_table_and_default(image):
 
 def test_unknown_method(image):
     with pytest.raises(ValueError, match="method='horn1974' is not known; choose one of 'blake1985'"):
-        lightness(image, method="horn1974")
+        estimate_lightness(image, method="horn1974")
 
 
 def test_option_the_method_does_not_accept(image):
     with pytest.raises(ValueError, match=r"lightness\(method='blake1985'\): unknown option\(s\) anchors; "
                                          r"blake1985 accepts threshold, anchor, mean_lightness, mask, edge_rule, "
                                          r"edge_illumination, min_value, brightest_percentile, solver$"):
-        lightness(image, anchors="mean")
+        estimate_lightness(image, anchors="mean")
 
 
 def test_forwarded_options_change_the_result(image):
-    r0, _ = lightness(image)
+    r0, _ = estimate_lightness(image)
     for opts in ({"anchor": "mean"}, {"edge_rule": "component", "threshold": 0.02},
                  {"edge_illumination": "subtract"}):
-        r, _ = lightness(image, **opts)
+        r, _ = estimate_lightness(image, **opts)
         assert not np.array_equal(r, r0), opts
         np.testing.assert_array_equal(r, lightness_blake1985(image, **opts)[0])

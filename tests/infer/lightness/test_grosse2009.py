@@ -5,7 +5,7 @@ import pytest
 
 from pbrbench.infer.lightness import (
     METHODS,
-    lightness,
+    estimate_lightness,
     lightness_blake1985,
     lightness_grosse2009,
     select_thresholds_hold_one_out,
@@ -89,7 +89,7 @@ def test_hold_one_out_never_scores_an_image_with_its_own_choice():
 def test_registered_and_dispatched():
     assert METHODS["grosse2009"] is lightness_grosse2009
     a, light = two_papers()
-    r1, _ = lightness(a * light, method="grosse2009", threshold=0.05)
+    r1, _ = estimate_lightness(a * light, method="grosse2009", threshold=0.05)
     r2, _ = lightness_grosse2009(a * light, threshold=0.05)
     np.testing.assert_array_equal(r1, r2)
 

@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
+import pbrbench.infer.photometric_stereo as ps
 from pbrbench.infer.photometric_stereo import (
     METHODS,
-    photometric_stereo,
     photometric_stereo_woodham1980,
+    solve_photometric_stereo,
 )
 from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
 from pbrbench.shading.surfaces import on_grid
@@ -22,25 +23,30 @@ def glossy():
 
 
 def test_table():
-    assert set(METHODS) == {"woodham1980", "ikehata2012_l1", "ikehata2012_sbl", "wu2010", "nayar1991"}
+    # derived from the table: a new method needs no edit here
     assert METHODS["woodham1980"] is photometric_stereo_woodham1980
+    for name, fn in METHODS.items():
+        assert fn.__module__.startswith("pbrbench.infer.photometric_stereo."), (name, fn.__module__)
+        assert fn.__name__ in ps.__all__ and getattr(ps, fn.__name__) is fn
+        assert f'``"{name}"``: :func:`{fn.__name__}`' in solve_photometric_stereo.__doc__
+        assert "References" in fn.__doc__ and ".. math::" in fn.__doc__ and "%(" not in fn.__doc__, name
 
 
 @pytest.mark.parametrize("name", list(METHODS))
 def test_dispatch_equals_the_method(glossy, name):
     imgs, lights, mask = glossy
-    a = photometric_stereo(imgs, lights, mask=mask, method=name)
+    a = solve_photometric_stereo(imgs, lights, mask=mask, method=name)
     b = METHODS[name](imgs, lights, mask=mask)
     for f in ("normals", "albedo", "residual", "n_used", "valid"):
         np.testing.assert_array_equal(getattr(a, f), getattr(b, f))
     if name == "woodham1980":
-        np.testing.assert_array_equal(photometric_stereo(imgs, lights, mask=mask).normals, a.normals)
+        np.testing.assert_array_equal(solve_photometric_stereo(imgs, lights, mask=mask).normals, a.normals)
 
 
 def test_unknown_method(glossy):
     imgs, lights, _ = glossy
     with pytest.raises(ValueError, match="method='svd' is not known; choose one of 'woodham1980', 'ikehata2012_l1'"):
-        photometric_stereo(imgs, lights, method="svd")
+        solve_photometric_stereo(imgs, lights, method="svd")
 
 
 def test_option_the_method_does_not_accept(glossy):
@@ -48,16 +54,16 @@ def test_option_the_method_does_not_accept(glossy):
     with pytest.raises(ValueError, match=r"photometric_stereo\(method='woodham1980'\): unknown option\(s\) max_iter; "
                                          r"woodham1980 accepts mask, intensities, shadow_threshold, saturation, "
                                          r"min_lights$"):
-        photometric_stereo(imgs, lights, max_iter=10)
+        solve_photometric_stereo(imgs, lights, max_iter=10)
     with pytest.raises(ValueError, match=r"unknown option\(s\) shadow; ikehata2012_l1 accepts .*max_iter"):
-        photometric_stereo(imgs, lights, method="ikehata2012_l1", shadow=0.1)
+        solve_photometric_stereo(imgs, lights, method="ikehata2012_l1", shadow=0.1)
 
 
 def test_forwarded_option_changes_the_result(glossy):
     imgs, lights, mask = glossy
-    a = photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1")
-    b = photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1", max_iter=1)
+    a = solve_photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1")
+    b = solve_photometric_stereo(imgs, lights, mask=mask, method="ikehata2012_l1", max_iter=1)
     assert not np.array_equal(a.normals, b.normals)
-    c = photometric_stereo(imgs, lights, mask=mask, shadow_threshold=0.3)
-    assert (c.n_used[mask] <= photometric_stereo(imgs, lights, mask=mask).n_used[mask]).all()
-    assert not np.array_equal(c.normals, photometric_stereo(imgs, lights, mask=mask).normals)
+    c = solve_photometric_stereo(imgs, lights, mask=mask, shadow_threshold=0.3)
+    assert (c.n_used[mask] <= solve_photometric_stereo(imgs, lights, mask=mask).n_used[mask]).all()
+    assert not np.array_equal(c.normals, solve_photometric_stereo(imgs, lights, mask=mask).normals)

@@ -12,9 +12,9 @@ import pytest
 
 from pbrbench.infer.photometric_stereo import (
     METHODS,
-    photometric_stereo,
     photometric_stereo_nayar1991,
     photometric_stereo_woodham1980,
+    solve_photometric_stereo,
 )
 from pbrbench.infer.photometric_stereo import _interreflection as ir
 from pbrbench.infer.photometric_stereo.nayar1991 import InterreflectionResult
@@ -52,7 +52,7 @@ def test_registered_and_dispatched():
     assert METHODS["nayar1991"] is photometric_stereo_nayar1991
     n, m = _groove(32)
     _, imgs = _render(n, m, 0.6, 4, 0.5)
-    a = photometric_stereo(imgs, LIGHTS, method="nayar1991", mask=m, block=4)
+    a = solve_photometric_stereo(imgs, LIGHTS, method="nayar1991", mask=m, block=4)
     b = photometric_stereo_nayar1991(imgs, LIGHTS, mask=m, block=4)
     assert isinstance(a, InterreflectionResult)
     np.testing.assert_array_equal(a.normals, b.normals)
