@@ -14,7 +14,7 @@ of the task it follows (``interface``; most tasks have one) and its kind:
 Built-in entries come from the tasks (:meth:`pbrbench.tasks.base.Task.builtin_algorithms`), which
 read the methods tables: adding a method to a table adds it to the benchmark with no other edit.
 Per-quality budgets (e.g. fewer iterations at draft) live in the quality profile
-(:attr:`pbrbench.render.quality.Quality.algorithm_options`) and are merged by
+(:attr:`pbrbench.quality.Quality.algorithm_options`) and are merged by
 :meth:`Algorithm.options_for`.  The callable's signature is the task's (``docs/adding.md``).
 
 Plugins (``docs/plugins.md``) are added by :func:`pbrbench.plugins.plugin_registry`: the built-ins, then every

@@ -31,6 +31,10 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:   # the profile type, for the annotations only (this module imports no pbrbench module)
+    from pbrbench.quality import Quality
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 
@@ -158,9 +162,9 @@ class Settings:
         """The results database: ``store``, else ``<out>/history.sqlite``."""
         return Path(self.store) if self.store is not None else Path(self.out) / "history.sqlite"
 
-    def baseline_path(self, quality: str) -> Path | None:
-        """``<baselines>/<quality>.json`` (None when there is no baselines directory)."""
-        return None if self.baselines is None else Path(self.baselines) / f"{quality}.json"
+    def baseline_path(self, quality: Quality) -> Path | None:
+        """``<baselines>/<quality name>.json`` (None when there is no baselines directory)."""
+        return None if self.baselines is None else Path(self.baselines) / f"{quality.name}.json"
 
     def progress_bars(self, stream) -> bool:
         """Progress bars when asked for, else when ``stream`` is a terminal."""

@@ -25,11 +25,11 @@ def main(argv=None) -> int:
     pairs = [s.split("=", 1) for s in (a.scene or ["photometric_stereo=ps_groove[albedo=0.9]",
                                                    "photometric_stereo=ps_cup[albedo=0.9]", "sfs=sfs_vase",
                                                    "sfs=sfs_sphere"])]
+    from pbrbench import quality as Q
     from pbrbench.bench.plan import load_tasks
     from pbrbench.bench.run import execute_job
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.registry import builtin_registry
-    from pbrbench.render import quality as Q
     from pbrbench.render.cache import RenderCache
 
     draft = Q.PRESETS["draft"]

@@ -40,8 +40,8 @@ def _floor(task, gt, lights, sigma: float = 2.0):
 
 def main(argv=None) -> None:
     from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
-    from pbrbench.render.quality import get_quality
     from pbrbench.tasks.base import Job
     from pbrbench.tasks.common.scenes import family_scenes
     from pbrbench.tasks.photometric_stereo import PhotometricStereoTask

@@ -35,9 +35,9 @@ def main(argv=None) -> int:
     from pbrbench.bench.plan import load_tasks
     from pbrbench.bench.run import execute_job
     from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.quality import get_quality
     from pbrbench.registry import builtin_registry
     from pbrbench.render.cache import RenderCache
-    from pbrbench.render.quality import get_quality
 
     q = get_quality(a.quality)
     tasks = load_tasks(sorted({t for t, _ in pairs}))

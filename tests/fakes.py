@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from pbrbench.bench.source import GroundTruthSource
+from pbrbench.quality import DRAFT
 from pbrbench.registry import Algorithm
 from pbrbench.render.groundtruth import GroundTruth
 from pbrbench.report.figures import slug
@@ -42,7 +43,7 @@ class FakeCache:
 class FakeSource(GroundTruthSource):
     """Synthetic ground truths; 'rendering' writes a marker file so the cache check is real."""
 
-    def __init__(self, root, quality="draft"):
+    def __init__(self, root, quality=DRAFT):
         super().__init__(quality, cache=FakeCache(root), variant="fake")
 
     def specs(self, names):
@@ -224,8 +225,8 @@ def scores_of(res: JobResult) -> dict:
 
 def run_task(task, job, gts, *, seed=0, quality="draft", registry=None):
     """``task.run_job`` with the task's built-in algorithms (or ``registry``'s)."""
+    from pbrbench.quality import get_quality
     from pbrbench.registry import builtin_registry
-    from pbrbench.render.quality import get_quality
 
     reg = registry or builtin_registry({task.name: task})
     return task.run_job(job, gts, seed=seed, algorithms=reg.for_task(task.name), quality=get_quality(quality))

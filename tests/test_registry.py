@@ -10,8 +10,8 @@ import textwrap
 import numpy as np
 import pytest
 
+from pbrbench.quality import get_quality
 from pbrbench.registry import Algorithm, Registry, builtin_registry, source_hash
-from pbrbench.render.quality import get_quality
 from pbrbench.tasks import get_tasks
 from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 from tests.fakes import FakeSource, ps_gt, ps_job, settings_for

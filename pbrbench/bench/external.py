@@ -215,9 +215,9 @@ def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None, repl
     delete-one-group ground truths, and ``replicates/noise/`` for a second seed): predictions
     written there too give ``evaluate`` the standard error.  Returns the manifest."""
     from pbrbench.progress import Progress
-    from pbrbench.render.quality import get_quality
+    from pbrbench.quality import require
 
-    q = get_quality(quality)
+    q = require(quality)
     out = Path(out_dir)
     if out.exists() and any(out.iterdir()) and not (out / MANIFEST).is_file():
         raise UserError(f"--out {out}: the folder exists and is not an export; give an empty or new folder")
@@ -448,7 +448,7 @@ def read_manifest(folder) -> dict:
         One line naming the file: no manifest, invalid JSON, a wrong type, a missing key, a job
         folder outside the export.
     """
-    from pbrbench.render.quality import PRESETS
+    from pbrbench.quality import PRESETS
 
     p = Path(folder) / MANIFEST
     if not p.is_file():
@@ -1038,7 +1038,7 @@ def evaluate_export(task, export_dir, *, predictions_dir=None, name: str = "exte
         raise UserError(f"--name {name!r} is a built-in algorithm of {task.name}; choose another name")
     reg.add(alg)
     proxy = EvaluatedTask(task, records, reader, pdir)
-    from pbrbench.render.quality import get_quality
+    from pbrbench.quality import get_quality
 
     proxy.jobs(get_quality(manifest["quality"]))       # refuse a stale export before a run is created
     # the replicates' predictions (when the program wrote them) give the standard errors; files

@@ -6,6 +6,7 @@ A plan is a pure function of the task list and the quality profile: no renderer,
 from __future__ import annotations
 
 from pbrbench.errors import UserError
+from pbrbench.quality import Quality, require
 
 
 def load_tasks(names: list[str] | None = None) -> dict:
@@ -20,11 +21,9 @@ def load_tasks(names: list[str] | None = None) -> dict:
         raise UserError(f"--tasks: task module {e.name!r} is not available ({e})") from None
 
 
-def plan(tasks: dict, quality) -> list:
+def plan(tasks: dict, quality: Quality) -> list:
     """Every job of every task, ordered by scene (so consecutive jobs share ground truths)."""
-    from pbrbench.render.quality import get_quality
-
-    q = get_quality(quality)
+    q = require(quality)
     jobs = []
     for name, task in tasks.items():
         tj = task.jobs(q)

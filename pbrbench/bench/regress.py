@@ -35,18 +35,12 @@ import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pbrbench.quality import Quality
 from pbrbench.uncertainty import ALPHA, change, dof_of, finite, pooled_sd, rounding, unstable
 
 N_SEEDS = 4
 FORMAT = 2
 KEY_FIELDS = ("task", "scene", "condition", "algorithm", "metric")
-
-
-def baseline_path(quality: str, settings=None) -> Path | None:
-    """``<baselines>/<quality>.json`` of the ``baselines`` setting (None without one)."""
-    from pbrbench.settings import Settings
-
-    return (settings or Settings.from_env()).baseline_path(quality)
 
 
 def score_key(s: dict) -> str:
@@ -67,7 +61,7 @@ def _sig(x: float) -> float:
     return float(f"{x:.6g}") if finite(x) else None
 
 
-def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: str = "") -> dict:
+def build_baselines(runs: list[list[dict]], *, quality: Quality, seeds: list, note: str = "") -> dict:
     """Baselines from the scores of several runs with independent render seeds (module docstring)."""
     if not runs:
         raise ValueError("runs: need the scores of at least one run; pass one list of score dicts per seed")
@@ -106,7 +100,7 @@ def build_baselines(runs: list[list[dict]], *, quality: str, seeds: list, note: 
     for k, e in entries.items():
         if tuple(k.split("|")[:4]) in flipped:
             e["unstable"] = True
-    return {"format": FORMAT, "quality": quality, "seeds": list(seeds), "scene_hashes": hashes,
+    return {"format": FORMAT, "quality": quality.name, "seeds": list(seeds), "scene_hashes": hashes,
             "algorithm_versions": versions,
             "method": (f"value = mean over {len(runs)} runs with independent render seeds; sd = one run's standard "
                        "deviation pooled from the spread over the seeds and each run's jackknife standard error; a "

@@ -174,8 +174,8 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
     from pbrbench.bench import regress
     from pbrbench.plugins import plugin_registry
+    from pbrbench.quality import get_quality
     from pbrbench.registry import normalize_algorithm_spec
-    from pbrbench.render.quality import get_quality
     from pbrbench.report.figures import slug
     from pbrbench.settings import Settings
 
@@ -299,7 +299,7 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
 
         # ---- regression check, export, report; only then is the run complete
         outcome.scores = store.scores(run_id)
-        bpath = settings.baseline_path(quality.name)
+        bpath = settings.baseline_path(quality)
         baselines = regress.load_baselines(bpath) if bpath is not None else None
         if baselines is not None:
             outcome.comparison = regress.compare(outcome.scores, baselines)
@@ -352,11 +352,13 @@ def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks:
     """Run :data:`regress.N_SEEDS` - 1 more runs, each with its own render seed (every scene's
     ``render.seed`` offset) and job seed, and rewrite the baseline file from all of them."""
     from pbrbench.bench import regress
+    from pbrbench.quality import get_quality
     from pbrbench.settings import Settings
 
     log = log or _log
     settings = settings or Settings.from_env()
-    path = settings.baseline_path(cfg.quality)
+    quality = get_quality(cfg.quality)
+    path = settings.baseline_path(quality)
     if path is None:
         raise UserError("--update-baselines: no baselines directory (run from a source checkout or set "
                         "PBRBENCH_BASELINES)")
@@ -370,7 +372,7 @@ def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks:
                           log=log)
         runs.append(o.scores)
         seeds.append({"seed": c.seed, "render_seed": c.render_seed})
-    data = regress.build_baselines(runs, quality=cfg.quality, seeds=seeds,
+    data = regress.build_baselines(runs, quality=quality, seeds=seeds,
                                    note=f"runs {first.run_id} (+{regress.N_SEEDS - 1} seeds)")
     if cfg.tasks:   # only these tasks were rerun: the other tasks' entries stay as they were
         try:

@@ -26,10 +26,10 @@ class GroundTruthSource:
     memory_size = 4     # ground truths kept in memory (consecutive jobs share a scene)
 
     def __init__(self, quality, cache=None, variant: str | None = None, *, scenes=None, render_seed: int = 0):
+        from pbrbench.quality import require
         from pbrbench.render.cache import RenderCache
-        from pbrbench.render.quality import get_quality
 
-        self.quality = get_quality(quality)
+        self.quality = require(quality)
         self.cache = cache if cache is not None else RenderCache()
         self.variant = variant
         self.scenes = scenes          # scene library directory (None: the setting)
@@ -75,7 +75,7 @@ class GroundTruthSource:
         """The render-cache key of ``spec``'s ground truth (what identifies its content)."""
         from pbrbench.render.cache import cache_key
 
-        return cache_key(spec, self.quality.name, self.resolve_variant())
+        return cache_key(spec, self.quality, self.resolve_variant())
 
     # ------------------------------------------------------------------ ground truths
     def cached_meta(self, spec) -> dict | None:
@@ -102,7 +102,7 @@ class GroundTruthSource:
         from pbrbench.render.cache import ground_truth
 
         with RENDER_LOCK:
-            return ground_truth(spec, self.quality.name, cache=self.cache, variant=self.resolve_variant())
+            return ground_truth(spec, self.quality, cache=self.cache, variant=self.resolve_variant())
 
     def _remember(self, spec, gt):
         key = spec.content_hash()

@@ -2,7 +2,7 @@
 from the delete-one-group ground truths and, where the inputs depend on the seed, a second seed.
 
 Every rendered pass of a ground truth is the mean of ``G`` independent sample groups
-(:attr:`pbrbench.render.quality.Quality.groups`); :meth:`pbrbench.render.groundtruth.GroundTruth.replicate`
+(:attr:`pbrbench.quality.Quality.groups`); :meth:`pbrbench.render.groundtruth.GroundTruth.replicate`
 rebuilds the ground truth of every group but ``i``.  Scoring a job on each of those, with the same
 seed, gives ``G`` replicate values ``v_(i)`` of each metric, and the delete-one-group jackknife
 (:mod:`pbrbench.uncertainty`) gives the score's Monte Carlo standard error on ``G - 1`` degrees

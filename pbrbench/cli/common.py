@@ -10,7 +10,7 @@ from pathlib import Path
 
 
 def add_quality(p, default="standard"):
-    from pbrbench.render.quality import PRESETS
+    from pbrbench.quality import PRESETS
 
     # argparse %-formats help strings: a literal % in a description must be doubled
     descr = "; ".join(f"{q.name}: {q.description}" for q in PRESETS.values() if q.description).replace("%", "%%")

@@ -21,7 +21,7 @@ from pbrbench.errors import UserError, printable
 
 
 def register(sub):
-    from pbrbench.render.quality import PRESETS
+    from pbrbench.quality import PRESETS
 
     p = sub.add_parser("evaluate", help="score an external program's predictions (an export, DiLiGenT or MIT data)",
                        description=__doc__.split("\n", 2)[2].strip())
@@ -74,6 +74,7 @@ def _export(args, name: str, d: Path) -> int:
     from pbrbench.bench.external import evaluate_export, read_manifest
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.cli.run import summary_lines
+    from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
     from pbrbench.tasks import get_tasks
 
@@ -82,7 +83,7 @@ def _export(args, name: str, d: Path) -> int:
     if args.quality and args.quality != m["quality"]:
         raise UserError(f"--quality {args.quality}: {d} was exported at {m['quality']}; drop --quality or export again")
     task = get_tasks([name])[name]
-    source = GroundTruthSource(m["quality"], cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
+    source = GroundTruthSource(get_quality(m["quality"]), cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
     o, reader = evaluate_export(task, d, predictions_dir=args.predictions, name=args.name, version=args.version,
                                 with_builtins=args.with_builtins, settings=st, source=source,
                                 report=not args.no_report, log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr))

@@ -34,6 +34,7 @@ def register(sub):
 def run(args) -> int:
     from pbrbench.bench.external import export_task
     from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
     from pbrbench.tasks import get_tasks
 
@@ -44,8 +45,9 @@ def run(args) -> int:
     if name not in task_names():
         raise UserError(f"TASK {args.task!r}: unknown task; choose from {', '.join(task_names())}")
     task = get_tasks([name])[name]
-    source = GroundTruthSource(args.quality, cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
-    m = export_task(task, args.out, quality=args.quality, seed=args.seed, source=source,
+    quality = get_quality(args.quality)
+    source = GroundTruthSource(quality, cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
+    m = export_task(task, args.out, quality=quality, seed=args.seed, source=source,
                     log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr), replicates=not args.no_replicates)
     need = ", ".join(f"{p['name']}{'' if p['required'] else ' (optional)'}" for p in m["predictions"])
     print(f"{len(m['jobs'])} job(s) of {task.name} ({m['quality']}, seed {m['seed']}) in {args.out}")

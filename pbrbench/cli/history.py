@@ -7,7 +7,7 @@ def register(sub):
     p = sub.add_parser("history", help="list the stored benchmark runs")
     p.add_argument("--task", default=None, help="only runs that scored this task")
     from pbrbench.cli.common import add_store
-    from pbrbench.render.quality import names
+    from pbrbench.quality import names
 
     p.add_argument("--quality", default=None, choices=names())
     from pbrbench.cli.common import int_at_least

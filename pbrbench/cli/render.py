@@ -79,6 +79,7 @@ def _write_out(gt, where: Path, d: Path, previews: bool, meta: dict | None = Non
 def run(args) -> int:
     st = settings(args)
     from pbrbench.progress import Progress
+    from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache, ground_truth
     from pbrbench.scene.load import load_library, resolve
 
@@ -94,6 +95,7 @@ def run(args) -> int:
         raise UserError("render: name at least one SCENE (see `pbrbench scenes`) or pass --all")
     if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
         raise UserError(f"--out {args.out}: is a file, not a directory; choose a directory")
+    quality = get_quality(args.quality)
     cache = RenderCache(st.cache)
     bars = st.progress_bars(sys.stderr)
     t_all = time.perf_counter()
@@ -101,7 +103,7 @@ def run(args) -> int:
     for spec in specs:
         t0 = time.perf_counter()
         with Progress(spec.n_passes, spec.name, bars=bars, unit="pass", lines=False) as prog:
-            gt, cached = ground_truth(spec, args.quality, cache=cache, force=args.force,
+            gt, cached = ground_truth(spec, quality, cache=cache, force=args.force,
                                       progress=lambda what, p=prog: p.update(1, what))
         dt = time.perf_counter() - t0
         where = cache.entry_dir(gt.meta["cache_key"])

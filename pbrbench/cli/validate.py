@@ -104,6 +104,7 @@ figure{{display:inline-block;margin:0.5em}} figcaption{{font-size:13px;max-width
 def run(args) -> int:
     st = settings(args)
     from pbrbench.infer.photometric_stereo import METHODS
+    from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
     from pbrbench.render.proofs import CHECKS, run_checks
 
@@ -120,7 +121,7 @@ def run(args) -> int:
         print(f"  {name}: {len(recs)} record(s), {bad} failed ({time.perf_counter() - t0:.1f}s)", file=sys.stderr, flush=True)
 
     figures: dict = {}
-    records = run_checks(args.quality, args.checks, RenderCache(st.cache), progress=progress,
+    records = run_checks(get_quality(args.quality), args.checks, RenderCache(st.cache), progress=progress,
                          diagnostics_dir=args.diagnostics, figures=figures,
                          photometric_stereo=METHODS["woodham1980"])
     seconds = time.perf_counter() - t0

@@ -26,6 +26,7 @@ import numpy as np
 
 from pbrbench.errors import UserError, disk_error
 from pbrbench.io import read_exr, write_exr, write_text
+from pbrbench.quality import Quality, require
 from pbrbench.render.groundtruth import GT_FORMAT, GroundTruth, render_ground_truth
 from pbrbench.render.variant import choose_variant, current_choice
 from pbrbench.scene.spec import SceneSpec
@@ -46,14 +47,12 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def cache_key(spec: SceneSpec, quality: str, variant: str) -> str:
+def cache_key(spec: SceneSpec, quality: Quality, variant: str) -> str:
     try:
         mv = importlib.metadata.version("mitsuba")
     except importlib.metadata.PackageNotFoundError:  # pragma: no cover
         mv = "?"
-    from pbrbench.render.quality import get_quality
-
-    blob = json.dumps({"scene": spec.content_hash(), "quality": get_quality(quality).render_key(), "variant": variant,
+    blob = json.dumps({"scene": spec.content_hash(), "quality": require(quality).render_key(), "variant": variant,
                        "mitsuba": mv, "format": GT_FORMAT}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()
 
@@ -192,7 +191,7 @@ def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
                     "source; check the lights' positions and directions and the albedos); not cached")
 
 
-def ground_truth(spec: SceneSpec, quality: str = "standard", *, cache: RenderCache | None = None,
+def ground_truth(spec: SceneSpec, quality: Quality, *, cache: RenderCache | None = None,
                  variant: str | None = None, force: bool = False, progress=None) -> tuple[GroundTruth, bool]:
     """The ground truth of ``spec`` from the cache, rendering it if missing.
 

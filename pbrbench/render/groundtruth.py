@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from pbrbench.render.quality import get_quality
+from pbrbench.quality import Quality, require
 from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
@@ -222,10 +222,10 @@ def _film_arrays(scene) -> dict[str, np.ndarray]:
 
 
 class _Renderer:
-    def __init__(self, spec: S.SceneSpec, quality: str, variant: str | None, progress=None):
+    def __init__(self, spec: S.SceneSpec, quality: Quality, variant: str | None, progress=None):
         self.mi = mitsuba(variant)
         self.spec = spec
-        q = get_quality(quality)
+        q = require(quality)
         self.quality = q.name
         self.res = q.resolution(spec.render.resolution)
         self.spp = q.spp(spec.render.spp)
@@ -244,12 +244,12 @@ class _Renderer:
             self.progress(what)
 
     def render_groups(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
-        """Mean of ``G`` independent sample groups (:attr:`pbrbench.render.quality.Quality.groups`,
+        """Mean of ``G`` independent sample groups (:attr:`pbrbench.quality.Quality.groups`,
         each with ``spp / G`` samples and its own seed) and the delete-one-group deviations
         ``jk`` of shape ``(G, H, W, 3)``: ``X + jk[i]`` is the mean of every group but ``i``
         (:func:`loo_deviations`).
 
-        With a noise target (:attr:`pbrbench.render.quality.Quality.noise_target`) the first
+        With a noise target (:attr:`pbrbench.quality.Quality.noise_target`) the first
         groups, at the scene's samples per pixel, are the pilot: where their relative noise over
         the lit pure pixels (:func:`pass_noise`) is above the target, every group gets the missing
         samples (noise ~ 1/sqrt(spp)), at most ``max_spp`` in all, rendered with seeds of its own
@@ -462,7 +462,7 @@ def noise_summary(arrays: dict, jks: dict, spec) -> dict:
     }
 
 
-def render_ground_truth(spec: S.SceneSpec, quality: str = "standard", *, variant: str | None = None,
+def render_ground_truth(spec: S.SceneSpec, quality: Quality, *, variant: str | None = None,
                         progress=None) -> GroundTruth:
     """Render every pass of the ground truth of ``spec`` (no cache: see :mod:`.cache`)."""
     r = _Renderer(spec, quality, variant, progress)

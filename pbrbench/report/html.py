@@ -255,7 +255,7 @@ def by_family(jobs: list[dict], conditions: list[str]) -> list[dict]:
             for f, js in sorted(groups.items())]
 
 
-def history_figures(store, run_id: str, info: dict, quality: str, out_dir: Path) -> list[dict]:
+def history_figures(store, run_id: str, info: dict, quality_name: str, out_dir: Path) -> list[dict]:
     """One history plot per task and condition of its headline metric (mean over scenes) across
     the stored runs of the same quality, written under ``<out_dir>/history/``."""
     from pbrbench.report.figures import history_png
@@ -266,7 +266,7 @@ def history_figures(store, run_id: str, info: dict, quality: str, out_dir: Path)
         metric = ti.get("headline_metric")
         if not metric:
             continue
-        rows = [r for r in store.metric_history(task, metric, quality=quality)]
+        rows = [r for r in store.metric_history(task, metric, quality=quality_name)]
         if not rows:
             continue
         runs = []
@@ -280,7 +280,7 @@ def history_figures(store, run_id: str, info: dict, quality: str, out_dir: Path)
             algs = sorted({a for _, a in acc})
             series = {a: [acc.get((ru, a)) for ru in runs] for a in algs}
             marks = [runs.index(run_id)] if run_id in runs else []
-            png = history_png(f"{task}: {metric} under {cond} (mean over scenes; {quality})", runs, series,
+            png = history_png(f"{task}: {metric} under {cond} (mean over scenes; {quality_name})", runs, series,
                               ylabel=metric, marks=marks)
             name = f"history/{_anchor(task)}-{_anchor(cond)}.png"
             (out_dir / name).write_bytes(png)

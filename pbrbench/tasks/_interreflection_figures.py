@@ -82,7 +82,7 @@ def _series(x, y, color, **style) -> dict:
 
 # ------------------------------------------------------------------------------ the figures
 def _groove(task, job, gts, quality) -> JobResult:
-    from pbrbench.render.quality import subsample
+    from pbrbench.quality import subsample
     from pbrbench.tasks.common.scenes import scene_spec
 
     res = JobResult(job)

@@ -247,9 +247,9 @@ class PhotometricStereoTask(Task):
         of :data:`INVERSE_FAMILIES` (or of its area twin) under :data:`INVERSE_CONDITIONS` (the
         short lists at a short-subset quality)."""
         if quality is None:
-            from pbrbench.render.quality import get_quality
+            from pbrbench.quality import STANDARD
 
-            quality = get_quality("standard")
+            quality = STANDARD
         fam = job.scene.split("[")[0]
         fam = fam[:-len("_area")] if fam.endswith("_area") else fam
         if fam not in quality.pick(INVERSE_FAMILIES, SHORT_INVERSE_FAMILIES):

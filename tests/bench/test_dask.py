@@ -12,6 +12,7 @@ pytest.importorskip("distributed", reason="Dask distributed is not installed (pi
 from pbrbench.bench.executors import DaskExecutor  # noqa: E402
 from pbrbench.bench.run import RunConfig, run_benchmark  # noqa: E402
 from pbrbench.bench.source import GroundTruthSource  # noqa: E402
+from pbrbench.quality import DRAFT  # noqa: E402
 from pbrbench.registry import Algorithm  # noqa: E402
 from pbrbench.render.cache import RenderCache  # noqa: E402
 from pbrbench.tasks.base import Job, JobResult, Task  # noqa: E402
@@ -71,7 +72,7 @@ def test_local_cluster_matches_local_executor(tmp_path):
         ex.client.run(_add_path, ROOT)  # the fake task and source live in the tests package
         probes = ex.probe()
         assert len(probes) == 2 and len({p["pid"] for p in probes}) == 2
-        src_d = GroundTruthSource("draft", cache=RenderCache(tmp_path / "cache-dask"))
+        src_d = GroundTruthSource(DRAFT, cache=RenderCache(tmp_path / "cache-dask"))
         variant = src_d.resolve_variant()
         assert all(p["variant"] == variant and p["threads"] == 1 for p in probes)
         # one run per source: the real renders (on the workers) and the synthetic ones
@@ -87,7 +88,7 @@ def test_local_cluster_matches_local_executor(tmp_path):
     # local executor, ground truth rendered again here in a separate cache
     l_r = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path / "l1"),
                         tasks={"rstats": RenderedStats()},
-                        source=GroundTruthSource("draft", cache=RenderCache(tmp_path / "cache-local")),
+                        source=GroundTruthSource(DRAFT, cache=RenderCache(tmp_path / "cache-local")),
                         log=lambda m: None)
     l_f = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path / "l2"), tasks={"fake": FakeTask()},
                         source=FakeSource(tmp_path / "fake-cache-2"), log=lambda m: None)

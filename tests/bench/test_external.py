@@ -19,8 +19,8 @@ import pytest
 from pbrbench import io
 from pbrbench.bench.external import evaluate_export, export_task, read_manifest
 from pbrbench.bench.run import RunConfig, run_benchmark
+from pbrbench.quality import DRAFT, get_quality
 from pbrbench.registry import Registry, builtin_registry
-from pbrbench.render.quality import get_quality
 from pbrbench.tasks.base import Job
 from pbrbench.tasks.hdr import HDRTask
 from pbrbench.tasks.lightness import LightnessTask
@@ -164,7 +164,7 @@ def test_export_external_program_evaluate_reproduces_the_in_process_scores_exact
     task, seed = TASKS[name], 3
     ref = _in_process(tmp_path / "ref", task, seed)
     assert not ref.errors
-    manifest = export_task(task, tmp_path / "export", quality=get_quality("draft"), seed=seed,
+    manifest = export_task(task, tmp_path / "export", quality=get_quality(DRAFT), seed=seed,
                            source=Synthetic(tmp_path / "cache"))
     assert len(manifest["jobs"]) == len(task.export_jobs(get_quality("draft")))
     _external(tmp_path / "export")
@@ -200,7 +200,7 @@ def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicat
     want = {(s["scene"], s["condition"], s["metric"]): (s["value"], s["uncertainty"], s["dof"], s["bias"])
             for s in ref.scores}
     assert all(math.isfinite(u) for _, u, _, _ in want.values())
-    export_task(task, tmp_path / "export", quality=get_quality("draft"), seed=seed, source=Grouped(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=get_quality(DRAFT), seed=seed, source=Grouped(tmp_path / "cache"))
     job = json.loads((tmp_path / "export" / read_manifest(tmp_path / "export")["jobs"][1]["folder"] / "job.json").read_text())
     assert [r["folder"].split("/", 2)[-1] for r in job["replicates"]] == [
         "replicates/0", "replicates/1", "replicates/2", "replicates/3", "replicates/noise"]   # local+noise0.01
@@ -224,7 +224,7 @@ def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicat
 
 def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
     task = TASKS["photometric_stereo"]
-    export_task(task, tmp_path / "x", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "x", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     m = read_manifest(tmp_path / "x")
     assert m["input_names"] == ["images", "lights"] and [p["name"] for p in m["predictions"]] == ["normals", "albedo", "valid"]
     d = tmp_path / "x" / m["jobs"][0]["folder"]
@@ -244,7 +244,7 @@ def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
                                      "meaning": task.predictions[0].meaning}
     assert job["call"] == "fn(images, lights, mask=mask)" and "camera_frame" in job["conventions"]
     hd = tmp_path / "h"
-    export_task(TASKS["hdr"], hd, quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(TASKS["hdr"], hd, quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     d = hd / read_manifest(hd)["jobs"][0]["folder"]
     ims = np.load(d / "images.npy")
     assert ims.dtype.kind == "u" and np.array_equal(io.read_png(d / "images" / "000.png"), ims[0])
@@ -254,7 +254,7 @@ def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
 def test_float32_exr_predictions_score_close_to_the_exact_ones(tmp_path):
     task = TASKS["photometric_stereo"]
     ref = _in_process(tmp_path / "ref", task, 0)
-    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export", "exr")
     out, reader = evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
                                   source=Synthetic(tmp_path / "cache"), log=lambda m: None)
@@ -269,7 +269,7 @@ def test_float32_exr_predictions_score_close_to_the_exact_ones(tmp_path):
 def test_hdr_radiance_predictions_are_scored_without_the_response(tmp_path):
     task = TASKS["hdr"]
     ref = _in_process(tmp_path / "ref", task, 1)
-    export_task(task, tmp_path / "export", quality="draft", seed=1, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=1, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export", "radiance")
     out, reader = evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
                                   source=Synthetic(tmp_path / "cache"), log=lambda m: None)
@@ -280,7 +280,7 @@ def test_hdr_radiance_predictions_are_scored_without_the_response(tmp_path):
 
 def test_bad_prediction_files_are_one_line_failures_naming_the_file(tmp_path):
     task = TASKS["photometric_stereo"]
-    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export")
     m = read_manifest(tmp_path / "export")
     d = [tmp_path / "export" / e["folder"] for e in m["jobs"]]
@@ -306,7 +306,7 @@ def test_bad_prediction_files_are_one_line_failures_naming_the_file(tmp_path):
 
 def test_some_jobs_bad_others_scored_and_tampered_inputs_refused(tmp_path):
     task = TASKS["sfs"]
-    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export")
     m = read_manifest(tmp_path / "export")
     d0 = tmp_path / "export" / m["jobs"][0]["folder"]
@@ -329,17 +329,17 @@ def test_evaluate_refuses_a_folder_that_is_no_export_and_a_wrong_task(tmp_path):
 
     with pytest.raises(UserError, match="no manifest.json"):
         evaluate_export(TASKS["sfs"], tmp_path, settings=settings_for(tmp_path))
-    export_task(TASKS["lightness"], tmp_path / "e", quality="draft", source=Synthetic(tmp_path / "cache"))
+    export_task(TASKS["lightness"], tmp_path / "e", quality=DRAFT, source=Synthetic(tmp_path / "cache"))
     with pytest.raises(UserError, match="an export of task 'lightness'"):
         evaluate_export(TASKS["sfs"], tmp_path / "e", settings=settings_for(tmp_path))
     (tmp_path / "busy").mkdir()
     (tmp_path / "busy" / "x.txt").write_text("mine")
     with pytest.raises(UserError, match="not an export"):
-        export_task(TASKS["lightness"], tmp_path / "busy", quality="draft", source=Synthetic(tmp_path / "cache"))
+        export_task(TASKS["lightness"], tmp_path / "busy", quality=DRAFT, source=Synthetic(tmp_path / "cache"))
 
 
 def test_readme_of_an_export_says_what_to_write(tmp_path):
-    export_task(TASKS["specular"], tmp_path / "e", quality="draft", source=Synthetic(tmp_path / "cache"))
+    export_task(TASKS["specular"], tmp_path / "e", quality=DRAFT, source=Synthetic(tmp_path / "cache"))
     text = (tmp_path / "e" / "README.txt").read_text()
     assert "mask.exr or mask.npy (or .png)" in text and "pbrbench evaluate specular" in text
     assert textwrap.dedent(text) == text
@@ -395,7 +395,7 @@ class InfPS(PS):
 def test_a_score_that_is_not_finite_is_refused_and_the_other_jobs_are_scored(tmp_path, crash):
     task = InfPS()
     task.crash = crash
-    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export")
     m = read_manifest(tmp_path / "export")
     out, reader = evaluate_export(task, tmp_path / "export", settings=settings_for(tmp_path / "ev"),
@@ -419,7 +419,7 @@ def test_a_job_folder_outside_the_export_is_never_read(tmp_path):
     from pbrbench.errors import UserError
 
     task = TASKS["photometric_stereo"]
-    export_task(task, tmp_path / "export", quality="draft", seed=0, source=Synthetic(tmp_path / "cache"))
+    export_task(task, tmp_path / "export", quality=DRAFT, seed=0, source=Synthetic(tmp_path / "cache"))
     _external(tmp_path / "export")
     mp = tmp_path / "export" / "manifest.json"
     m = json.loads(mp.read_text())

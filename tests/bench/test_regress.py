@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from pbrbench.bench import regress
+from pbrbench.quality import DRAFT
 from pbrbench.uncertainty import ALPHA, estimate
 
 
@@ -26,7 +27,7 @@ def measured(rng, theta, sigma, G=4, **kw):
 
 def test_baseline_is_the_mean_with_pooled_noise():
     runs = [[s(1.0, uncertainty=0.1, dof=3)], [s(1.2, uncertainty=0.1, dof=3)], [s(0.8, uncertainty=0.1, dof=3)]]
-    b = regress.build_baselines(runs, quality="draft", seeds=[{"seed": i, "render_seed": i} for i in range(3)])
+    b = regress.build_baselines(runs, quality=DRAFT, seeds=[{"seed": i, "render_seed": i} for i in range(3)])
     e = b["entries"]["t|a|local|m|rmse"]
     assert e["value"] == pytest.approx(1.0) and "better" not in e
     # spread over the seeds: var 0.04 on 2 dof; jackknife: 0.01 on 3 dof each -> (2*0.04 + 9*0.01) / 11
@@ -36,7 +37,7 @@ def test_baseline_is_the_mean_with_pooled_noise():
 
 def test_build_needs_runs():
     with pytest.raises(ValueError, match="runs"):
-        regress.build_baselines([], quality="draft", seeds=[])
+        regress.build_baselines([], quality=DRAFT, seeds=[])
 
 
 def _base(value, sd, better, dof=20, n=3, **kw):
@@ -78,7 +79,7 @@ def test_false_alarm_rate_and_power_on_simulated_renders():
     theta = rng.uniform(1, 20, n)
     sigma = rng.uniform(0.01, 0.5, n)
     runs = [[measured(rng, theta[i], sigma[i], **s(0, scene=f"s{i}")) for i in range(n)] for _ in range(regress.N_SEEDS)]
-    b = regress.build_baselines(runs, quality="draft", seeds=[0, 1, 2])
+    b = regress.build_baselines(runs, quality=DRAFT, seeds=[0, 1, 2])
     fresh = [measured(rng, theta[i], sigma[i], **s(0, scene=f"s{i}")) for i in range(n)]
     c = regress.compare(fresh, b)
     flagged = len(c.regressions) + len(c.improvements)
@@ -97,7 +98,7 @@ def test_unchanged_runs_pass_the_check_and_a_large_regression_of_one_score_fails
     n, trials, passed = 200, 40, 0
     for _ in range(trials):
         runs = [[measured(rng, 10.0, 0.1, **s(0, scene=f"s{i}")) for i in range(n)] for _ in range(regress.N_SEEDS)]
-        b = regress.build_baselines(runs, quality="draft", seeds=list(range(regress.N_SEEDS)))
+        b = regress.build_baselines(runs, quality=DRAFT, seeds=list(range(regress.N_SEEDS)))
         new = [measured(rng, 10.0, 0.1, **s(0, scene=f"s{i}")) for i in range(n)]
         passed += regress.compare(new, b).ok
     assert passed >= 0.9 * trials
@@ -116,7 +117,7 @@ def test_missing_and_new_keys():
 
 
 def test_write_load_roundtrip(tmp_path):
-    b = regress.build_baselines([[s(2.0)]], quality="draft", seeds=[0])
+    b = regress.build_baselines([[s(2.0)]], quality=DRAFT, seeds=[0])
     p = regress.write_baselines(b, tmp_path / "draft.json")
     assert regress.load_baselines(p) == b
     assert regress.load_baselines(tmp_path / "none.json") is None
@@ -136,7 +137,7 @@ def test_old_baseline_format_is_refused_with_the_fix(tmp_path):
 
 
 def test_changed_scene_is_named_in_the_message():
-    b = regress.build_baselines([[dict(s(1.0), scene_hash="aaa")]], quality="draft", seeds=[0])
+    b = regress.build_baselines([[dict(s(1.0), scene_hash="aaa")]], quality=DRAFT, seeds=[0])
     c = regress.compare([dict(s(2.0), scene_hash="bbb")], b)
     assert c.regressions[0].scene_changed and "scene file changed" in str(c.regressions[0])
     c2 = regress.compare([dict(s(2.0), scene_hash="aaa")], b)
@@ -147,7 +148,7 @@ def test_a_score_that_jumps_between_render_seeds_is_unstable_in_the_baseline():
     # each run's own replicates agree (SE 0.1), but the runs land on 0.3 or 0.7: a discrete choice
     # that differs between renders; the check lists it apart instead of crying regression
     runs = [[s(v, uncertainty=0.01, dof=3)] for v in (0.32, 0.74, 0.31, 0.73)]
-    b = regress.build_baselines(runs, quality="draft", seeds=list(range(4)))
+    b = regress.build_baselines(runs, quality=DRAFT, seeds=list(range(4)))
     e = b["entries"]["t|a|local|m|rmse"]
     assert e["unstable"] and e["sd"] >= 0.2
     c = regress.compare([s(0.74, uncertainty=0.01, dof=3)], b)
@@ -157,13 +158,13 @@ def test_a_score_that_jumps_between_render_seeds_is_unstable_in_the_baseline():
     flagged = 0
     for _ in range(300):
         runs = [[measured(rng, 5.0, 0.2, **s(0))] for _ in range(4)]
-        flagged += bool(regress.build_baselines(runs, quality="draft", seeds=[0, 1, 2, 3])["entries"]["t|a|local|m|rmse"].get("unstable"))
+        flagged += bool(regress.build_baselines(runs, quality=DRAFT, seeds=[0, 1, 2, 3])["entries"]["t|a|local|m|rmse"].get("unstable"))
     assert flagged <= 3
 
 
 def test_instability_is_the_pipelines_every_metric_of_its_job_inherits_it():
     runs = [[s(v, uncertainty=0.01, dof=3), s(1.0, metric="other", uncertainty=0.01, dof=3),
              s(1.0, metric="else", alg="n", uncertainty=0.01, dof=3)] for v in (0.32, 0.74, 0.31, 0.73)]
-    e = regress.build_baselines(runs, quality="draft", seeds=list(range(4)))["entries"]
+    e = regress.build_baselines(runs, quality=DRAFT, seeds=list(range(4)))["entries"]
     assert e["t|a|local|m|rmse"]["unstable"] and e["t|a|local|m|other"]["unstable"]
     assert not e["t|a|local|n|else"].get("unstable")

@@ -16,14 +16,16 @@ from pbrbench.bench import regress
 from pbrbench.bench.plan import load_tasks
 from pbrbench.bench.run import RunConfig, run_benchmark
 from pbrbench.bench.source import GroundTruthSource
+from pbrbench.quality import DRAFT
 from pbrbench.render.cache import RenderCache
+from pbrbench.settings import Settings
 from tests.fakes import settings_for
 
 pytestmark = [pytest.mark.render, pytest.mark.slow]
 
 
 def test_draft_scores_match_baselines(tmp_path, cache_dir):
-    path = regress.baseline_path("draft")
+    path = Settings.from_env().baseline_path(DRAFT)
     baselines = regress.load_baselines(path) if path is not None else None
     if baselines is None:
         pytest.skip(f"{path} does not exist; create it with `pbrbench run --quality draft --update-baselines`")
@@ -31,7 +33,7 @@ def test_draft_scores_match_baselines(tmp_path, cache_dir):
     st = settings_for(tmp_path, cache=cache_dir)
     fresh = 1 + max(int(s["render_seed"]) for s in baselines["seeds"])    # a render seed not in the baselines
     o = run_benchmark(RunConfig(quality="draft", seed=fresh, render_seed=fresh, report=False), settings=st,
-                      tasks=tasks, source=GroundTruthSource("draft", cache=RenderCache(cache_dir), render_seed=fresh),
+                      tasks=tasks, source=GroundTruthSource(DRAFT, cache=RenderCache(cache_dir), render_seed=fresh),
                       log=lambda m: None)
     assert not o.errors, "jobs failed:\n" + "\n".join(f"{k}: {v.strip().splitlines()[-1]}" for k, v in o.errors.items())
     comp = regress.compare(o.scores, baselines)

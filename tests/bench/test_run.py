@@ -12,13 +12,14 @@ import pytest
 import pbrbench.bench.plan as planning
 from pbrbench.bench.run import RunConfig, run_benchmark
 from pbrbench.bench.store import Store
+from pbrbench.quality import DRAFT
 from pbrbench.tasks.base import Job
 from tests.fakes import FakeSource, FakeTask, fake_run, settings_for
 
 
 # ----------------------------------------------------------------------------- tests
 def test_plan_orders_by_scene_and_rejects_duplicates():
-    jobs = planning.plan({"fake": FakeTask()}, "draft")
+    jobs = planning.plan({"fake": FakeTask()}, DRAFT)
     assert [j.scene for j in jobs] == ["scene_a", "scene_a", "scene_b", "scene_b"]
     assert planning.needed_scenes(jobs) == ["scene_a", "scene_b"]
 
@@ -27,14 +28,14 @@ def test_plan_orders_by_scene_and_rejects_duplicates():
             return [Job("fake", "s", "local")] * 2
 
     with pytest.raises(ValueError, match="duplicate job keys"):
-        planning.plan({"fake": Dup()}, "draft")
+        planning.plan({"fake": Dup()}, DRAFT)
 
     class Wrong(FakeTask):
         def jobs(self, quality):
             return [Job("other", "s", "local")]
 
     with pytest.raises(ValueError, match="Job.task"):
-        planning.plan({"fake": Wrong()}, "draft")
+        planning.plan({"fake": Wrong()}, DRAFT)
 
 
 def test_run_stores_scores_figures_export_and_report(tmp_path):

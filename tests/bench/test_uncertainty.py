@@ -11,9 +11,9 @@ import pytest
 from scipy import stats
 
 from pbrbench.bench.uncertainty import attach, replicate_scores
+from pbrbench.quality import get_quality
 from pbrbench.registry import Algorithm, builtin_registry
 from pbrbench.render.groundtruth import JK, GroundTruth, jackknife_sd, loo_deviations
-from pbrbench.render.quality import get_quality
 from pbrbench.tasks.base import Job, JobResult, Task
 from pbrbench.tasks.common.scoring import ScoreBook
 from pbrbench.uncertainty import estimate, jackknife, standard_error, unstable

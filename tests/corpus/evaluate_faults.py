@@ -37,6 +37,7 @@ from unittest import mock
 
 import numpy as np
 
+from pbrbench.quality import DRAFT
 from pbrbench.tasks.base import Job
 from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 from tests.fakes import FakeSource, ps_gt, ps_job
@@ -57,7 +58,7 @@ class SyntheticSource(FakeSource):
     """The ground-truth source the command line builds (``GroundTruthSource(quality, cache=...)``),
     with analytic ground truths instead of renders."""
 
-    def __init__(self, quality="draft", *, cache=None, variant=None, scenes=None, **_):
+    def __init__(self, quality=DRAFT, *, cache=None, variant=None, scenes=None, **_):
         super().__init__(Path(getattr(cache, "root", None) or tempfile.gettempdir()) / "synthetic", quality)
 
     def load(self, spec):
@@ -93,7 +94,7 @@ def build_base(d: Path) -> Path:
     from pbrbench.bench.external import export_task
 
     d = Path(d)
-    m = export_task(SmallPS(), d, quality="draft", seed=0, source=SyntheticSource(cache=None))
+    m = export_task(SmallPS(), d, quality=DRAFT, seed=0, source=SyntheticSource(cache=None))
     for e in m["jobs"]:
         write_predictions(d / e["folder"])
     return d

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 from pbrbench.errors import SceneError, UserError
+from pbrbench.quality import DRAFT
 from pbrbench.scene.load import load_scene_file
 from tests.corpus.measure import expectations, run_cli, run_in_process
 
@@ -52,7 +53,7 @@ def test_black_ground_truth_is_refused_and_not_cached(path, tmp_path):
     (spec,) = load_scene_file(path)
     cache = RenderCache(tmp_path)
     with pytest.raises(UserError) as e:
-        ground_truth(spec, "draft", cache=cache)
+        ground_truth(spec, DRAFT, cache=cache)
     msg = str(e.value)
     assert "\n" not in msg and "not cached" in msg
     for want in expectations(path)["expect"]:

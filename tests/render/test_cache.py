@@ -11,6 +11,7 @@ import textwrap
 import numpy as np
 import pytest
 
+from pbrbench.quality import DRAFT, STANDARD
 from pbrbench.render.cache import RenderCache, cache_key, ground_truth
 from pbrbench.scene.spec import SceneSpec
 
@@ -29,21 +30,21 @@ def spec(**upd) -> SceneSpec:
 
 
 def test_key_depends_on_content_quality_variant():
-    a = cache_key(spec(), "draft", "llvm_ad_rgb")
-    assert a == cache_key(spec(), "draft", "llvm_ad_rgb")
-    assert a != cache_key(spec(), "standard", "llvm_ad_rgb")
-    assert a != cache_key(spec(), "draft", "scalar_rgb")
-    assert a != cache_key(spec(render={"resolution": 16, "spp": 8, "seed": 1}), "draft", "llvm_ad_rgb")
+    a = cache_key(spec(), DRAFT, "llvm_ad_rgb")
+    assert a == cache_key(spec(), DRAFT, "llvm_ad_rgb")
+    assert a != cache_key(spec(), STANDARD, "llvm_ad_rgb")
+    assert a != cache_key(spec(), DRAFT, "scalar_rgb")
+    assert a != cache_key(spec(render={"resolution": 16, "spp": 8, "seed": 1}), DRAFT, "llvm_ad_rgb")
     # the description does not change the render, so it does not change the key
-    assert a == cache_key(spec(description="another text"), "draft", "llvm_ad_rgb")
+    assert a == cache_key(spec(description="another text"), DRAFT, "llvm_ad_rgb")
 
 
 @pytest.mark.render
 def test_round_trip_through_cache(tmp_path):
     c = RenderCache(tmp_path)
-    gt, cached = ground_truth(spec(), "standard", cache=c)
+    gt, cached = ground_truth(spec(), STANDARD, cache=c)
     assert not cached
-    gt2, cached2 = ground_truth(spec(), "standard", cache=c)
+    gt2, cached2 = ground_truth(spec(), STANDARD, cache=c)
     assert cached2
     for k in gt.arrays:
         assert gt2.arrays[k].tobytes() == gt.arrays[k].tobytes(), k
@@ -56,14 +57,14 @@ def test_round_trip_through_cache(tmp_path):
 @pytest.mark.render
 def test_corrupt_entry_is_not_read(tmp_path):
     c = RenderCache(tmp_path)
-    gt, _ = ground_truth(spec(), "standard", cache=c)
+    gt, _ = ground_truth(spec(), STANDARD, cache=c)
     exr = c.entry_dir(gt.meta["cache_key"]) / "gt.exr"
     data = bytearray(exr.read_bytes())
     data[len(data) // 2] ^= 0xFF
     exr.write_bytes(bytes(data))
     assert c.get(gt.meta["cache_key"]) is None  # checksum mismatch -> discarded
     assert not exr.exists()
-    _, cached = ground_truth(spec(), "standard", cache=c)
+    _, cached = ground_truth(spec(), STANDARD, cache=c)
     assert not cached
 
 
@@ -80,7 +81,8 @@ KILLED_WRITER = textwrap.dedent("""
         time.sleep(60)
     C.write_exr = slow_write
     spec = SceneSpec.model_validate(__SCENE__)
-    C.ground_truth(spec, "standard", cache=C.RenderCache(sys.argv[1]))
+    from pbrbench.quality import STANDARD
+    C.ground_truth(spec, STANDARD, cache=C.RenderCache(sys.argv[1]))
 """).replace("__SCENE__", repr(SCENE))
 
 
@@ -96,10 +98,10 @@ def test_sigkill_mid_write_leaves_no_valid_entry(tmp_path):
         if proc.poll() is None:
             proc.kill()
     c = RenderCache(tmp_path)
-    key = cache_key(spec(), "standard", _variant())
+    key = cache_key(spec(), STANDARD, _variant())
     assert c.get(key) is None
     assert c.info()["entries"] == 0 and c.info()["stale_temporaries"] == 1
-    gt, cached = ground_truth(spec(), "standard", cache=c)  # the rerun succeeds
+    gt, cached = ground_truth(spec(), STANDARD, cache=c)  # the rerun succeeds
     assert not cached and np.isfinite(gt["radiance"]).all() and gt["radiance"].max() > 0
     assert c.get(key) is not None
     assert c.clear() == 1 and c.info()["stale_temporaries"] == 0
@@ -119,7 +121,7 @@ def test_cache_cli(tmp_path, capsys, monkeypatch, action):
 
     monkeypatch.setenv("PBRBENCH_CACHE", str(tmp_path))  # restored after the test
 
-    ground_truth(spec(), "standard", cache=RenderCache(tmp_path))
+    ground_truth(spec(), STANDARD, cache=RenderCache(tmp_path))
     assert main(["cache", action, "--cache", str(tmp_path)]) == 0
     out = capsys.readouterr().out
     assert ("entries  1" in out) if action == "info" else ("removed 1 entries" in out)

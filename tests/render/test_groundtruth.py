@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbrbench.quality import STANDARD
 from pbrbench.render.cache import RenderCache, ground_truth
 from pbrbench.scene.spec import SceneSpec
 from pbrbench.shading.surfaces import pixel_grid
@@ -30,7 +31,7 @@ SCENE = {
 
 @pytest.fixture(scope="module")
 def gt(cache_dir):
-    g, _ = ground_truth(SceneSpec.model_validate(SCENE), "standard", cache=RenderCache(cache_dir))
+    g, _ = ground_truth(SceneSpec.model_validate(SCENE), STANDARD, cache=RenderCache(cache_dir))
     return g
 
 
@@ -118,7 +119,7 @@ def test_scalar_variant_ground_truth_has_the_same_mask_as_llvm(tmp_path):
     code = ("import sys, json; from pbrbench.render import variant; from pbrbench.settings import Settings; "
             "variant.configure(Settings.from_env(variant=sys.argv[1])); "
             "from pbrbench.render.groundtruth import render_ground_truth; from pbrbench.scene.load import resolve; "
-            "(s,) = resolve(['sphere_5lights']); g = render_ground_truth(s, 'draft', variant=sys.argv[1]); "
+            "(s,) = resolve(['sphere_5lights']); g = render_ground_truth(s, DRAFT, variant=sys.argv[1]); "
             "print(json.dumps([int(g.mask.sum()), float(g['albedo'][g.mask].mean())]))")
     out = {}
     for v in ("scalar_rgb", "llvm_ad_rgb"):

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbrbench.quality import DRAFT
 from pbrbench.render import proofs
 from pbrbench.render.cache import RenderCache
 from pbrbench.render.proofs import interreflection as IR
@@ -92,7 +93,7 @@ def test_unknown_arguments_reach_every_check():
 @pytest.mark.render
 def test_radiosity_groove(cache):
     figures = {}
-    recs = IR.check_groove("draft", cache, figures=figures)
+    recs = IR.check_groove(DRAFT, cache, figures=figures)
     _all_pass(recs)
     names = {r["check"] for r in recs}
     assert {"radiosity_groove[parallel,rho=0.9]", "radiosity_groove[bisector,rho=0.9]:peak"} <= names
@@ -102,7 +103,7 @@ def test_radiosity_groove(cache):
 @pytest.mark.render
 def test_radiosity_room_and_the_perspective_index(cache):
     figures = {}
-    recs = IR.check_room("draft", cache, figures=figures)
+    recs = IR.check_room(DRAFT, cache, figures=figures)
     _all_pass(recs)
     assert {r["check"] for r in recs} == {"radiosity_room[room_black]", "radiosity_room[room_black]:peak",
                                           "radiosity_room[room_white]", "radiosity_room[room_white]:peak"}
@@ -117,7 +118,7 @@ def test_radiosity_room_and_the_perspective_index(cache):
     from pbrbench.radiosity.image import patch_index_image
 
     spec = IR._library("room_white")[0]
-    gt = proofs.common.ground_truth_of(spec, "draft", cache)
+    gt = proofs.common.ground_truth_of(spec, DRAFT, cache)
     H, W = gt.mask.shape
     mesh = model_patches(spec, view_width(spec) / 8)
     idx = patch_index_image(spec, mesh, (W, H))
@@ -131,7 +132,7 @@ def test_radiosity_room_and_the_perspective_index(cache):
 @pytest.mark.render
 def test_radiosity_cap_renderer_solver_and_photometric_stereo(cache):
     figures = {}
-    recs = proofs.run_checks("draft", ["radiosity_cap"], cache, figures=figures, photometric_stereo=_woodham())
+    recs = proofs.run_checks(DRAFT, ["radiosity_cap"], cache, figures=figures, photometric_stereo=_woodham())
     _all_pass(recs)
     kinds = {r["check"].split("]")[1] for r in recs}
     assert kinds == {":render", ":render:peak", ":solver", ":photometric_stereo", ":ps_beta"}
@@ -146,7 +147,7 @@ def test_cap_without_a_photometric_stereo_method_fails_that_record(cache):
     from pbrbench.render.proofs.cap import check_cap
 
     spec = IR._library("ps_cap")[-1]
-    recs = check_cap("draft", cache, specs=[spec])
+    recs = check_cap(DRAFT, cache, specs=[spec])
     ps = next(r for r in recs if r["check"].endswith(":photometric_stereo"))
     assert not ps["passed"] and "no photometric-stereo method" in ps["detail"]
 
@@ -161,7 +162,7 @@ def test_cap_records_fail_for_a_wrong_albedo(cache):
     from pbrbench.shading import surfaces
 
     spec = IR._library("ps_cap")[-1]
-    case = PC.cap_case(spec, "draft", cache, photometric_stereo=_woodham())
+    case = PC.cap_case(spec, DRAFT, cache, photometric_stereo=_woodham())
     H, W = case["interior"].shape
     X, Y = surfaces.pixel_grid(H, W, spec.camera.half_width)
     z = surfaces.evaluate("spherical_cap", X, Y, radius=1.0, half_angle_deg=60.0).z
@@ -178,7 +179,7 @@ def test_cap_records_fail_for_a_wrong_albedo(cache):
 @pytest.mark.render
 def test_gain_curve(cache):
     figures = {}
-    recs = proofs.run_checks("draft", ["gain_curve"], cache, figures=figures)
+    recs = proofs.run_checks(DRAFT, ["gain_curve"], cache, figures=figures)
     _all_pass(recs)
     (fig,) = figures.values()
     assert any(k.startswith("Mitsuba") for k in fig["series"])

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from pbrbench.render.quality import get_quality
+from pbrbench.quality import get_quality
 
 
 def test_every_task_lists_unique_jobs_of_its_conditions():

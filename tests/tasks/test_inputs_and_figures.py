@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pbrbench.render.quality import get_quality
+from pbrbench.quality import get_quality
 from pbrbench.scene import spec as S
 from pbrbench.scene.geometry import camera_rotation, light_vectors, nominal_light
 from pbrbench.tasks.base import Job, parse_condition
@@ -50,7 +50,7 @@ def test_parse_condition_sweep_value_subsample():
     assert parse_condition("global+readnoise0.002+3x3stops") == ("global", {"readnoise": 0.002, "3x3stops": 1.0})
     assert sweep_value("ps_cup[albedo=0.3]", "albedo") == 0.3
     assert sweep_value("ps_cup", "albedo") is None
-    from pbrbench.render.quality import subsample
+    from pbrbench.quality import subsample
 
     assert subsample([1, 2, 3, 4, 5], 2) == [1, 5]
     assert subsample([1, 2, 3, 4, 5], 3) == [1, 3, 5]

@@ -82,7 +82,7 @@ def test_room_and_groove_plots_name_their_chapter_figures(rooms):
 
 
 def test_jobs_skip_black_scenes_and_draw_every_gallery_figure():
-    from pbrbench.render.quality import get_quality
+    from pbrbench.quality import get_quality
 
     jobs = TASK.jobs(get_quality("draft"))
     assert not any("albedo=0]" in j.scene for j in jobs)

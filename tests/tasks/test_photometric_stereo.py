@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from pbrbench.quality import DRAFT, get_quality
 from pbrbench.render.groundtruth import GroundTruth
-from pbrbench.render.quality import get_quality
 from pbrbench.scene import spec as S
 from pbrbench.tasks.base import Job
 from pbrbench.tasks.common.inputs import as_param, erode
@@ -166,7 +166,7 @@ def test_ps_on_a_draft_render():
         materials={"paint": {"type": "diffuse", "albedo": 0.7}},
         shapes=({"type": "sphere", "material": "paint"},),
         light_set=tuple({"type": "directional", "direction": tuple(v), "irradiance": np.pi} for v in FIVE[:4]))
-    gt = render_ground_truth(spec, "draft")  # 32 x 32, 4 spp
+    gt = render_ground_truth(spec, DRAFT)  # 32 x 32, 4 spp
     job = Job("photometric_stereo", spec.name, "local", TASK._params(spec))
     sc = scores_of(run_task(TASK, job, {spec.name: gt}))
     assert sc[("woodham1980", "normal_mean_deg")] < 1.0

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from pbrbench.infer.photometric_stereo import METHODS
+from pbrbench.quality import get_quality
 from pbrbench.registry import Algorithm, Registry
-from pbrbench.render.quality import get_quality
 from pbrbench.tasks.base import Job
 from pbrbench.tasks.photometric_stereo import TASK, PhotometricStereoTask
 from tests.fakes import ps_gt, ps_job, run_task, scores_of

@@ -43,8 +43,10 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import call_method
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.integration.frankot1988 import integrate_frankot1988
 from pbrbench.infer.integration.gradients import (
+    DOCS,
     gradients_from_height,
     integrability_residual,
     normals_from_gradients,
@@ -75,6 +77,7 @@ METHODS = {
 }
 
 
+@docstring(DOCS)
 def integrate_normals(normals=None, *, gradients=None, mask=None, method: str = "lsq",
                       pixel_size: float = 1.0, **options) -> np.ndarray:
     r"""Height map ``z`` (up to a constant) whose gradients best match a normal field.
@@ -87,21 +90,14 @@ def integrate_normals(normals=None, *, gradients=None, mask=None, method: str = 
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)``, ``p = f_x``, ``q = f_y`` in the y-up frame, given instead of ``normals``.
-    mask : (H, W) bool, optional
-        Domain.  Default: the pixels with a finite, non-zero normal (finite ``p``, ``q``).
-        Pixels with ``N_z <= 1e-3`` are dropped from the domain.
+    %(inputs)s
     method : {"lsq", "path", "frankot1988", "simchony1990"}
         ``"lsq"`` (default): :func:`integrate_lsq` (Agrawal, Raskar & Chellappa, ECCV 2006).
         ``"path"``: :func:`integrate_path` (Forsyth & Ponce, Algorithm 1.2).
         ``"frankot1988"``: :func:`integrate_frankot1988` (Frankot & Chellappa, IEEE TPAMI 1988).
         ``"simchony1990"``: :func:`integrate_simchony1990` (Simchony, Chellappa & Shao, IEEE
         TPAMI 1990).
-    pixel_size : float
-        World size of one pixel; the height is returned in the same world units.
+    %(pixel_size)s
     **options
         The chosen method's own options (``lsq``: ``tol``, the relative residual tolerance).
 

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.fft
 
-from pbrbench.infer.integration.gradients import _prepare
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.integration.gradients import DOCS, _prepare
 
 __all__ = ["integrate_frankot1988"]
 
@@ -40,6 +41,7 @@ def _frankot_chellappa(p, q, h):
     return np.real(scipy.fft.ifft2(zf))
 
 
+@docstring(DOCS)
 def integrate_frankot1988(normals=None, *, gradients=None, mask=None, pixel_size: float = 1.0) -> np.ndarray:
     r"""Height by Fourier projection onto integrable surfaces (Frankot & Chellappa 1988).
 
@@ -49,24 +51,10 @@ def integrate_frankot1988(normals=None, *, gradients=None, mask=None, pixel_size
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)`` with ``p = f_x``, ``q = f_y``, given instead of ``normals``.
-    mask : (H, W) bool, optional
-        Domain (default: finite, non-zero normals; ``N_z <= 1e-3`` dropped).
-    pixel_size : float
-        World size of one pixel.
+    %(inputs)s
+    %(pixel_size)s
 
-    Returns
-    -------
-    z : (H, W) float64
-        Height with mean zero over the domain, 0 outside.
-
-    Raises
-    ------
-    ValueError
-        On bad input (as :func:`pbrbench.infer.integration.integrate_lsq`).
+    %(rectangle)s
 
     References
     ----------

@@ -42,7 +42,32 @@ from pbrbench.checks import (
 )
 from pbrbench.infer._scale import robust_norm
 
-__all__ = ["normals_to_gradients", "normals_from_gradients", "gradients_from_height", "integrability_residual"]
+__all__ = ["DOCS", "normals_to_gradients", "normals_from_gradients", "gradients_from_height", "integrability_residual"]
+
+# numpydoc fragments shared by the integrators' docstrings (pbrbench.infer._docstring)
+DOCS = {
+    "inputs": """\
+normals : (H, W, 3) array, optional
+    Normals in the camera frame (x right, y up, z toward the camera).
+gradients : pair of (H, W) arrays, optional
+    ``(p, q)``, ``p = f_x``, ``q = f_y`` in the y-up frame, given instead of ``normals``.
+mask : (H, W) bool, optional
+    Domain.  Default: the pixels with a finite, non-zero normal (finite ``p``, ``q``).
+    Pixels with ``N_z <= 1e-3`` are dropped from the domain.""",
+    "pixel_size": """\
+pixel_size : float
+    World size of one pixel; the height is returned in the same world units.""",
+    "rectangle": """\
+Returns
+-------
+z : (H, W) float64
+    Height with mean zero over the domain, 0 outside.
+
+Raises
+------
+ValueError
+    On bad input (as :func:`pbrbench.infer.integration.integrate_lsq`).""",
+}
 
 
 def _check_normals(normals, name="normals"):

@@ -23,12 +23,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer.integration.gradients import _edge_gradients, _prepare
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.integration.gradients import DOCS, _edge_gradients, _prepare
 from pbrbench.infer.poisson import solve_gradient_field
 
 __all__ = ["integrate_lsq"]
 
 
+@docstring(DOCS)
 def integrate_lsq(normals=None, *, gradients=None, mask=None, pixel_size: float = 1.0,
                   tol: float = 1e-8) -> np.ndarray:
     r"""Height whose edge differences best match the trapezoid slopes, on the masked domain.
@@ -43,15 +45,8 @@ def integrate_lsq(normals=None, *, gradients=None, mask=None, pixel_size: float 
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)``, ``p = f_x``, ``q = f_y`` in the y-up frame, given instead of ``normals``.
-    mask : (H, W) bool, optional
-        Domain.  Default: the pixels with a finite, non-zero normal (finite ``p``, ``q``);
-        pixels with ``N_z <= 1e-3`` are dropped.
-    pixel_size : float
-        World size of one pixel; the height is returned in the same units.
+    %(inputs)s
+    %(pixel_size)s
     tol : float
         Relative residual tolerance of the iterative solver.
 

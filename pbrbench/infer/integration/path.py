@@ -20,7 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer.integration.gradients import _edge_gradients, _prepare
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.integration.gradients import DOCS, _edge_gradients, _prepare
 
 __all__ = ["integrate_path"]
 
@@ -32,6 +33,7 @@ def _path(gx, gy):
     return z
 
 
+@docstring(DOCS)
 def integrate_path(normals=None, *, gradients=None, mask=None, pixel_size: float = 1.0) -> np.ndarray:
     r"""Height by integrating down the left column, then along every row (the chapter's path).
 
@@ -43,24 +45,10 @@ def integrate_path(normals=None, *, gradients=None, mask=None, pixel_size: float
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)`` with ``p = f_x``, ``q = f_y``, given instead of ``normals``.
-    mask : (H, W) bool, optional
-        Domain (default: finite, non-zero normals; ``N_z <= 1e-3`` dropped).
-    pixel_size : float
-        World size of one pixel.
+    %(inputs)s
+    %(pixel_size)s
 
-    Returns
-    -------
-    z : (H, W) float64
-        Height with mean zero over the domain, 0 outside.
-
-    Raises
-    ------
-    ValueError
-        On bad input (as :func:`pbrbench.infer.integration.integrate_lsq`).
+    %(rectangle)s
 
     References
     ----------

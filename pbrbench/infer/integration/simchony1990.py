@@ -20,12 +20,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.infer.integration.gradients import _edge_gradients, _prepare
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.integration.gradients import DOCS, _edge_gradients, _prepare
 from pbrbench.infer.poisson import solve_gradient_field
 
 __all__ = ["integrate_simchony1990"]
 
 
+@docstring(DOCS)
 def integrate_simchony1990(normals=None, *, gradients=None, mask=None, pixel_size: float = 1.0) -> np.ndarray:
     r"""Height by a direct DCT solve of the Neumann Poisson equation on the full rectangle.
 
@@ -36,24 +38,10 @@ def integrate_simchony1990(normals=None, *, gradients=None, mask=None, pixel_siz
 
     Parameters
     ----------
-    normals : (H, W, 3) array, optional
-        Normals in the camera frame (x right, y up, z toward the camera).
-    gradients : pair of (H, W) arrays, optional
-        ``(p, q)`` with ``p = f_x``, ``q = f_y``, given instead of ``normals``.
-    mask : (H, W) bool, optional
-        Domain (default: finite, non-zero normals; ``N_z <= 1e-3`` dropped).
-    pixel_size : float
-        World size of one pixel.
+    %(inputs)s
+    %(pixel_size)s
 
-    Returns
-    -------
-    z : (H, W) float64
-        Height with mean zero over the domain, 0 outside.
-
-    Raises
-    ------
-    ValueError
-        On bad input (as :func:`pbrbench.infer.integration.integrate_lsq`).
+    %(rectangle)s
 
     References
     ----------

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from pbrbench.quality import DRAFT, Quality, require
 from pbrbench.render.proofs.common import Record, quiet_mitsuba
 from pbrbench.render.proofs.direct import (
     check_area_source,
@@ -41,7 +42,6 @@ from pbrbench.render.proofs.direct import (
     check_integrating_sphere,
     check_sphere,
 )
-from pbrbench.render.quality import get_quality
 
 
 # --------------------------------------------------------------------------- registry
@@ -85,14 +85,14 @@ CHECKS: dict[str, Callable[..., list[Record]]] = {
 }
 
 
-def run_checks(quality: str = "draft", checks=None, cache=None, *, progress=None, diagnostics_dir=None,
+def run_checks(quality: Quality = DRAFT, checks=None, cache=None, *, progress=None, diagnostics_dir=None,
                figures=None, photometric_stereo=None) -> list[Record]:
     """Run the named checks (default: all) at ``quality``; returns every record.  Statistical
     checks that fail write diagnostic images into ``diagnostics_dir`` when it is given; checks
     with figures add them (name -> plot dict) to ``figures`` when it is given; the cap check runs
     ``photometric_stereo`` (a method of :data:`pbrbench.infer.photometric_stereo.METHODS`, which
     this layer does not import) on its renders."""
-    get_quality(quality)
+    require(quality)
     names = list(CHECKS) if not checks else list(checks)
     unknown = [n for n in names if n not in CHECKS]
     if unknown:

@@ -42,9 +42,9 @@ import math
 
 import numpy as np
 
+from pbrbench.quality import DRAFT, Quality, require
 from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.render.proofs.interreflection import MAX_EXCESS, Cells, _grey, _library, _z, cap_spec
-from pbrbench.render.quality import get_quality
 
 __all__ = ["check_cap", "cap_case", "cap_cases", "mesh_area_deficit"]
 
@@ -65,10 +65,10 @@ def mesh_area_deficit(spec) -> float:
     return float(1.0 - area / (2 * math.pi * R * R * (1 - math.cos(a))))
 
 
-def cap_cases(quality: str) -> list:
+def cap_cases(quality: Quality) -> list:
     """The caps checked at ``quality``: ``ps_cap`` at the albedos the profile keeps, and caps of
     other half-angles (40 and 75 degrees; one in a short profile)."""
-    q = get_quality(quality)
+    q = require(quality)
     lib = q.keep(_library("ps_cap"))
     extra = q.pick([(0.5, 40.0), (0.9, 40.0), (0.5, 75.0), (0.9, 75.0)], [(0.7, 40.0)])
     return lib + [cap_spec(r, a) for r, a in extra]
@@ -84,7 +84,7 @@ def _geometry(spec):
     return R, alpha, rho
 
 
-def cap_case(spec, quality: str, cache, *, photometric_stereo=None) -> dict:
+def cap_case(spec, quality: Quality, cache, *, photometric_stereo=None) -> dict:
     """Everything the cap records need for one cap (render, closed form, solver, photometric stereo)."""
     from pbrbench.radiosity.concave_cap import (
         cap_form_factor,
@@ -264,7 +264,7 @@ def _case_records(c: dict) -> list[Record]:
     return out
 
 
-def check_cap(quality: str = "draft", cache=None, *, figures=None, specs=None, photometric_stereo=None) -> list[Record]:
+def check_cap(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None, photometric_stereo=None) -> list[Record]:
     """``radiosity_cap``: the caps of :func:`cap_cases` (or ``specs``)."""
     specs = cap_cases(quality) if specs is None else list(specs)
     cases = [cap_case(s, quality, cache, photometric_stereo=photometric_stereo) for s in specs]

@@ -3,6 +3,7 @@ quiet Mitsuba logging while the checks run."""
 
 from __future__ import annotations
 
+from pbrbench.quality import Quality
 from pbrbench.scene.spec import SceneSpec
 
 Record = dict
@@ -13,7 +14,7 @@ def record(check: str, measured: float, bound: float, detail: str = "", *, passe
     return {"check": check, "measured": float(measured), "bound": float(bound), "passed": ok, "detail": detail}
 
 
-def ground_truth_of(spec: SceneSpec, quality: str, cache):
+def ground_truth_of(spec: SceneSpec, quality: Quality, cache):
     from pbrbench.render.cache import RenderCache, ground_truth
 
     cache = cache if cache is not None else RenderCache()

@@ -63,8 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from pbrbench.quality import DRAFT, Quality, require
 from pbrbench.render.proofs.common import Record, ground_truth_of, record
-from pbrbench.render.quality import get_quality
 from pbrbench.scene.spec import SceneSpec
 
 __all__ = ["check_groove", "check_room", "groove_spec", "cap_spec", "groove_geometry", "groove_case", "room_case",
@@ -333,7 +333,7 @@ def _records(name: str, c: Comparison, what: str, cells_are: str = "the patches 
 GROOVE_LEVELS = (4, 8, 16, 32)   # strips per face (up to W / 4: strips about 2 pixels wide)
 
 
-def groove_case(spec: SceneSpec, quality: str, cache) -> dict:
+def groove_case(spec: SceneSpec, quality: Quality, cache) -> dict:
     """Render and model of one groove: the comparison on strips across the groove (each strip
     the whole visible length of the groove), the local model and the strips' centres."""
     from pbrbench.radiosity.form_factor_matrix import form_factor_matrix
@@ -369,10 +369,10 @@ def groove_case(spec: SceneSpec, quality: str, cache) -> dict:
             "local": cmp.cells.mean(local[cmp.level]), "rho": float(np.mean(spec.material_of(spec.shapes[0]).albedo))}
 
 
-def check_groove(quality: str = "draft", cache=None, *, figures=None, specs=None) -> list[Record]:
+def check_groove(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None) -> list[Record]:
     """``radiosity_groove``: every albedo of both library grooves (the sweep cut by the quality
     profile), or the grooves ``specs`` (e.g. :func:`groove_spec` of other angles)."""
-    q = get_quality(quality)
+    q = require(quality)
     if specs is None:
         fams = {f: q.keep(_library(f)) for f in ("groove_reflex_parallel", "groove_reflex_bisector")}
     else:
@@ -408,7 +408,7 @@ def _groove_plot(fam: str, cases: list[dict]) -> dict:
 ROOM_ROW = 0.72   # the section: the image row at this fraction of the height (through the cube and the tall box)
 
 
-def room_case(spec: SceneSpec, quality: str, cache) -> dict:
+def room_case(spec: SceneSpec, quality: Quality, cache) -> dict:
     """Render and model of one room (:func:`pbrbench.radiosity.forward_models.scene_model` at 6 and
     12 patches across the view with 3 and 4 shadow-ray points per side, from 96 px at 12 and 24
     with 4 and 6; cells = the patches of a mesh of 3, from 96 px 6, patches across the view), and
@@ -456,7 +456,7 @@ def room_case(spec: SceneSpec, quality: str, cache) -> dict:
             "patches": len(model.patches)}
 
 
-def check_room(quality: str = "draft", cache=None, *, figures=None, specs=None) -> list[Record]:
+def check_room(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None) -> list[Record]:
     """``radiosity_room``: the black and the white room (or ``specs``), patch cells."""
     specs = list(specs) if specs is not None else [_library("room_black")[0], _library("room_white")[0]]
     out, cases = [], []

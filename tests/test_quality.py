@@ -2,7 +2,7 @@
 
 
 def test_every_sample_group_gets_at_least_two_samples_where_the_scene_has_them():
-    from pbrbench.render.quality import get_quality
+    from pbrbench.quality import get_quality
 
     d = get_quality("draft")
     assert d.groups == 4

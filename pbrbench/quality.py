@@ -129,6 +129,21 @@ PRESETS: dict[str, Quality] = {
 }
 
 
+DRAFT, STANDARD, HIGH = PRESETS["draft"], PRESETS["standard"], PRESETS["high"]
+
+
+def require(quality) -> Quality:
+    """``quality`` itself when it is a :class:`Quality`; a ``TypeError`` otherwise.
+
+    Below the command line and the API entry points every function is handed the profile
+    object: a name is resolved once, where it enters (:func:`get_quality`), never looked up again.
+    """
+    if not isinstance(quality, Quality):
+        raise TypeError(f"quality: expected a pbrbench.quality.Quality, got {quality!r}; resolve a name once "
+                        "with pbrbench.quality.get_quality(name)")
+    return quality
+
+
 def _rebuild(name: str) -> Quality:
     return PRESETS[name]
 
