@@ -1,18 +1,8 @@
 r"""What every shape-from-shading method shares: result records, input preparation, the
 reflectance map, silhouette helpers and the least-squares integrator.
 
-Model (all methods): a Monge patch ``z = f(x, y)`` seen orthographically along ``z`` in the
-camera frame of ``docs/conventions.md`` (x right, y up, z toward the camera; row 0 is the top),
-of uniform Lambertian albedo ``rho``, lit by one distant source of unit direction ``S`` (toward
-the source).  With ``p = f_x``, ``q = f_y`` the image irradiance equation is
-
-.. math::
-    I(x, y) = \rho\, R(p, q), \qquad
-    R(p, q) = \max\Big(0, \frac{S_z - S_x p - S_y q}{\sqrt{1 + p^2 + q^2}}\Big),
-
-the normal being ``N = (-p, -q, 1) / sqrt(1 + p^2 + q^2)``.  Every method works on the
-normalised image ``E = I / rho`` (clipped to [0, 1]) in **pixel units** (slopes are unitless; the
-height is computed in pixels and multiplied by ``pixel_size`` at the end).
+The model they share (the image irradiance equation, the frame, the pixel units) is stated once,
+in the docstring of :mod:`pbrbench.infer.sfs`.
 """
 
 from __future__ import annotations
@@ -35,6 +25,27 @@ from pbrbench.infer.integration import gradients_from_height, integrate_lsq, nor
 
 __all__ = ["SFSResult", "LightEstimate", "integrate_gradients", "occluding_boundary"]
 
+
+
+# numpydoc fragments shared by the methods' docstrings (pbrbench.infer._docstring)
+DOCS = {
+    "raises": """\
+Raises
+------
+ValueError
+    On bad input (see :func:`pbrbench.infer.sfs.shape_from_shading`) or a bad option value.""",
+    "light_result": """\
+Returns
+-------
+LightEstimate
+    ``direction`` (3,) unit vector toward the source (``z >= 0``), ``albedo``, and ``method``
+    (the method's name in :data:`pbrbench.infer.sfs.LIGHT_METHODS`).
+
+Raises
+------
+ValueError
+    On a bad image or mask, or (for the contour method) too few lit contour pixels.""",
+}
 
 @dataclass(frozen=True)
 class SFSResult:

@@ -27,7 +27,9 @@ import numpy as np
 from scipy import ndimage
 
 from pbrbench.checks import check_int
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.sfs._common import (
+    DOCS,
     LightEstimate,
     _outward_directions,
     _prepare_light_image,
@@ -106,6 +108,7 @@ def _contour_light(img, m, *, seed: int = 0, n_trials: int = 300, inlier_frac: f
     return d / np.linalg.norm(d), rho
 
 
+@docstring(DOCS)
 def light_from_shading_contour(image, mask=None, *, seed: int = 0) -> LightEstimate:
     r"""Distant light direction and albedo from the brightness along the occluding contour.
 
@@ -132,16 +135,7 @@ def light_from_shading_contour(image, mask=None, *, seed: int = 0) -> LightEstim
     seed : int
         Seed of the RANSAC sampling (the result is deterministic given it).
 
-    Returns
-    -------
-    LightEstimate
-        ``direction`` (3,) unit vector toward the source (``z >= 0``), ``albedo``,
-        ``method="contour"``.
-
-    Raises
-    ------
-    ValueError
-        On a bad image or mask, or too few lit contour pixels.
+    %(light_result)s
 
     References
     ----------

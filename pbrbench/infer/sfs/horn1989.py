@@ -37,7 +37,9 @@ from pbrbench.checks import (
     check_positive,
     check_tolerance,
 )
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.sfs._common import (
+    DOCS,
     SFSResult,
     _finish,
     _outward_directions,
@@ -263,6 +265,7 @@ def _horn_pyramid(E, s, m, *, levels, coarse_iter, **kw):
     return p, q, z, ok, it, d, it
 
 
+@docstring(DOCS)
 def shape_from_shading_horn1989(image, light, *, albedo=None, mask=None, pixel_size: float = 1.0,
                                 max_iter: int = 100, tol: float = 1e-4, boundary="auto",
                                 theta_max_deg: float = 88.0, smoothness: float = 1.0,
@@ -323,10 +326,7 @@ def shape_from_shading_horn1989(image, light, *, albedo=None, mask=None, pixel_s
         ``final_update``, ``total_sweeps`` (all levels) and ``n_boundary``.  Without meeting
         ``tol`` it warns (``RuntimeWarning``) and sets ``converged=False``.
 
-    Raises
-    ------
-    ValueError
-        On bad input (see :func:`pbrbench.infer.sfs.shape_from_shading`) or a bad option value.
+    %(raises)s
 
     References
     ----------

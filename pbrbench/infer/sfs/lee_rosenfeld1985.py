@@ -23,8 +23,9 @@ import math
 import numpy as np
 from scipy import ndimage
 
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer._scale import pow2_exponent
-from pbrbench.infer.sfs._common import LightEstimate, _prepare_light_image
+from pbrbench.infer.sfs._common import DOCS, LightEstimate, _prepare_light_image
 
 __all__ = ["light_from_shading_lee_rosenfeld1985"]
 
@@ -39,6 +40,7 @@ def _disc_moments(slant: float, n: int = 201):
     return sh.mean(), (sh * sh).mean()
 
 
+@docstring(DOCS)
 def light_from_shading_lee_rosenfeld1985(image, mask=None) -> LightEstimate:
     r"""Distant light direction and albedo from the image's gradient and brightness moments.
 
@@ -61,16 +63,7 @@ def light_from_shading_lee_rosenfeld1985(image, mask=None) -> LightEstimate:
     mask : (H, W) bool, optional
         The object's pixels (default: the whole image).
 
-    Returns
-    -------
-    LightEstimate
-        ``direction`` (3,) unit vector toward the source (``z >= 0``), ``albedo``,
-        ``method="lee_rosenfeld1985"``.
-
-    Raises
-    ------
-    ValueError
-        On a bad image or mask.
+    %(light_result)s
 
     References
     ----------

@@ -21,7 +21,8 @@ import warnings
 import numpy as np
 
 from pbrbench.checks import check_positive
-from pbrbench.infer.sfs._common import SFSResult, _finish, _is_frontal, _prepare
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.sfs._common import DOCS, SFSResult, _finish, _is_frontal, _prepare
 
 __all__ = ["shape_from_shading_pentland1990"]
 
@@ -44,6 +45,7 @@ def _pentland(E, s, m, *, reg):
     return np.where(m, z, 0.0)
 
 
+@docstring(DOCS)
 def shape_from_shading_pentland1990(image, light, *, albedo=None, mask=None, pixel_size: float = 1.0,
                                     regularization: float = 0.1) -> SFSResult:
     r"""Height and normals from one image by Pentland's (1990) linear shape from shading.
@@ -72,10 +74,7 @@ def shape_from_shading_pentland1990(image, light, *, albedo=None, mask=None, pix
     SFSResult
         ``method="pentland1990"``; normals from the height's central differences.
 
-    Raises
-    ------
-    ValueError
-        On bad input (see :func:`pbrbench.infer.sfs.shape_from_shading`) or a bad option value.
+    %(raises)s
 
     References
     ----------

@@ -27,7 +27,8 @@ import numpy as np
 from scipy import ndimage
 
 from pbrbench.checks import check_int, check_positive, check_tolerance
-from pbrbench.infer.sfs._common import SFSResult, _finish, _is_frontal, _prepare, _reflectance
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.sfs._common import DOCS, SFSResult, _finish, _is_frontal, _prepare, _reflectance
 
 __all__ = ["shape_from_shading_tsai_shah1994"]
 
@@ -133,6 +134,7 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
     return np.where(m, zimg, 0.0), converged, steps, info
 
 
+@docstring(DOCS)
 def shape_from_shading_tsai_shah1994(image, light, *, albedo=None, mask=None, pixel_size: float = 1.0,
                                      max_iter: int = 100, tol: float = 1e-4,
                                      damping: float = 1e-2) -> SFSResult:
@@ -174,10 +176,7 @@ def shape_from_shading_tsai_shah1994(image, light, *, albedo=None, mask=None, pi
         ``method="tsai_shah1994"``; ``n_iter`` counts accepted Newton steps; ``info`` holds
         ``final_update``, ``stalled``, ``residual_rms`` and ``initial_residual_rms``.
 
-    Raises
-    ------
-    ValueError
-        On bad input (see :func:`pbrbench.infer.sfs.shape_from_shading`) or a bad option value.
+    %(raises)s
 
     References
     ----------
