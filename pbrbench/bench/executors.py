@@ -9,11 +9,16 @@ source's memory cache.  Ground truths go into the render cache at the same path 
 (shared when the workers share a file system; otherwise each worker renders what it lacks);
 scores and figures (PNG bytes) come back to the client, which alone writes the store and the
 report.  A worker lost mid-run costs only time: Dask runs its tasks again elsewhere
-(:meth:`DaskExecutor.imap`), and since a job is a pure function its scores are the same.
+(:meth:`DaskExecutor.imap`), and since a job is a pure function its scores are the same.  A
+scheduler lost mid-run (killed, its machine gone) or one that never answers ends the run with
+:class:`SchedulerLost`: one line naming the address and how to resume; the run is recorded as
+``interrupted`` (:func:`pbrbench.bench.lifecycle.finish`) and keeps every job stored before.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
 import sys
 from contextlib import contextmanager
@@ -22,6 +27,66 @@ from pbrbench.bench.source import RENDER_LOCK
 from pbrbench.errors import UserError
 
 PLUGIN_NAME = "pbrbench-mitsuba"
+CLOSE_TIMEOUT_S = 10      # how long closing a client whose scheduler is gone may take
+
+
+class SchedulerLost(UserError):
+    """The Dask scheduler stopped answering (or never answered); the run can be resumed.
+
+    ``run_status`` is the status the run is recorded with (:func:`pbrbench.bench.lifecycle.finish`
+    reads it from the exception that ends the run), and ``run_id`` is set there too, so that the
+    message names the run to resume.
+
+    Parameters
+    ----------
+    address : str
+        The scheduler's address (``--scheduler``).
+    what : str
+        What happened, e.g. ``"lost the connection after 3 of 12 tasks"``.
+    """
+
+    run_status = "interrupted"
+
+    def __init__(self, address: str, what: str):
+        super().__init__(address, what)
+        self.address, self.what = address, what
+        self.run_id: str | None = None
+
+    def __str__(self) -> str:
+        run = self.run_id or "RUN"
+        kept = f"run {self.run_id} is marked interrupted and keeps every job it stored; " if self.run_id else ""
+        return (f"--scheduler {self.address}: the Dask scheduler {self.what}; {kept}resume it with `pbrbench run "
+                f"--resume {run} --executor dask --scheduler ADDR` once a scheduler runs (`dask scheduler`), or "
+                f"`pbrbench run --resume {run}` to finish it locally")
+
+
+_QUIET = ("distributed", "distributed.client", "distributed.comm", "distributed.core", "distributed.utils",
+          "tornado", "asyncio")
+
+
+def silence_distributed(level: int = logging.CRITICAL) -> list[tuple[logging.Logger, int]]:
+    """Silence the ``distributed`` loggers (their tracebacks of a lost connection); returns what
+    :func:`restore_loggers` needs to undo it."""
+    old = [(lg, lg.level) for lg in map(logging.getLogger, _QUIET)]
+    for lg, _ in old:
+        lg.setLevel(level)
+    return old
+
+
+def restore_loggers(old: list[tuple[logging.Logger, int]]) -> None:
+    """Undo :func:`silence_distributed`."""
+    for lg, level in old:
+        lg.setLevel(level)
+
+
+@contextmanager
+def quiet_distributed(level: int = logging.CRITICAL):
+    """The ``distributed`` loggers silenced while the block runs."""
+    old = silence_distributed(level)
+    try:
+        yield
+    finally:
+        restore_loggers(old)
 
 
 def _plugin():
@@ -146,19 +211,65 @@ class DaskExecutor:
         settings = settings or Settings.from_env()
         self.cluster = None
         threads = settings.worker_threads
+        self.address = scheduler or "LocalCluster"
+        self.lost = False
+        self._quiet: list | None = None     # the loggers silenced since the scheduler was lost
+        self._client = None
+        self._client_cls = Client
+        # a --scheduler is connected on first use, inside the run: one that never answers leaves an
+        # interrupted run whose message says how to resume it, not a run that reads 'running'
         if scheduler:
-            self.client = Client(scheduler, timeout="30s")
+            self._plugin = make_worker_plugin(variant, threads, settings.worker_env())
         else:
             n = workers or max(1, (os.cpu_count() or 2) // 2)
             threads = threads or max(1, (os.cpu_count() or 1) // n)
+            self._plugin = make_worker_plugin(variant, threads, settings.worker_env())
             self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                         dashboard_address=None, silence_logs=40)
-            self.client = Client(self.cluster)
-        plugin = make_worker_plugin(variant, threads, settings.worker_env())
-        if hasattr(self.client, "register_plugin"):
-            self.client.register_plugin(plugin, name=plugin.name)
-        else:  # pragma: no cover - older distributed
-            self.client.register_worker_plugin(plugin, name=plugin.name)
+            self._setup(Client(self.cluster))
+
+    @property
+    def client(self):
+        """The Dask client, connected to ``--scheduler`` on first use (:class:`SchedulerLost` when
+        no scheduler answers there)."""
+        if self._client is None:
+            self._setup(_connect(self._client_cls, self.address))
+        return self._client
+
+    def _setup(self, client):
+        """Keep ``client`` and register the worker plugin through it."""
+        self._client = client
+        plugin = self._plugin
+        try:
+            if hasattr(client, "register_plugin"):
+                client.register_plugin(plugin, name=plugin.name)
+            else:  # pragma: no cover - older distributed
+                client.register_worker_plugin(plugin, name=plugin.name)
+        except (OSError, TimeoutError) as exc:
+            if self.cluster is not None:
+                raise
+            self._lose()
+            self.close()
+            raise SchedulerLost(self.address, f"stopped answering while the workers were set up "
+                                f"({_why(exc)})") from None
+
+    def _lose(self):
+        """The scheduler is gone: the client's attempts to reconnect are not reported (the run
+        says it in one line)."""
+        self.lost = True
+        if self._quiet is None:
+            self._quiet = silence_distributed()
+
+    def _check_connected(self, done: int, total: int, exc: BaseException | None = None):
+        """Raise :class:`SchedulerLost` when the client has lost its scheduler."""
+        status = getattr(self.client, "status", "running")
+        reason = str(getattr(exc, "reason", "") or "")
+        if status == "running" and "scheduler-connection-lost" not in reason:
+            return      # connected: an error of a task is the caller's to raise
+        self._lose()
+        raise SchedulerLost(self.address, f"lost the connection after {done} of {total} task(s) had finished"
+                            + (f" ({_why(exc)})" if exc is not None and "scheduler-connection-lost" not in reason
+                               else "")) from None
 
     def imap(self, fn, arglists):
         """``fn(*args)`` for each of ``arglists`` on the cluster, yielded as each finishes (in no
@@ -171,12 +282,27 @@ class DaskExecutor:
         ``distributed.scheduler.allowed-failures`` + 1 workers died (Dask's default: 3 + 1) is given
         up (``KilledWorker``): the other tasks still run and their results are yielded, then
         :class:`pbrbench.errors.UserError` names the tasks that were given up.
+
+        A scheduler that is gone (before the tasks are sent, or while they run) raises
+        :class:`SchedulerLost` at once: every result yielded before is the caller's to keep.
         """
+        from concurrent.futures import CancelledError
+
         from distributed import as_completed
+        from distributed.comm import CommClosedError
         from distributed.scheduler import KilledWorker
 
-        futures = [self.client.submit(fn, *args, pure=False) for args in arglists]
+        arglists = list(arglists)
+        if not arglists:
+            return
+        self._check_connected(0, len(arglists))
+        try:
+            futures = [self.client.submit(fn, *args, pure=False) for args in arglists]
+        except (OSError, TimeoutError, CommClosedError, CancelledError) as exc:
+            self._check_connected(0, len(arglists), exc)
+            raise
         lost: list[KilledWorker] = []
+        done = 0
         try:
             for fut in as_completed(futures):
                 try:
@@ -184,11 +310,17 @@ class DaskExecutor:
                 except KilledWorker as exc:
                     lost.append(exc)
                     continue
+                except (CancelledError, CommClosedError, OSError, TimeoutError) as exc:
+                    self._check_connected(done, len(futures), exc)
+                    raise
+                done += 1
                 yield result
         finally:
-            for f in futures:
-                if not f.done():
-                    f.cancel()
+            if not self.lost:
+                for f in futures:
+                    if not f.done():
+                        with contextlib.suppress(Exception):
+                            f.cancel()
         if lost:
             n = lost[0].allowed_failures + 1
             raise UserError(f"Dask: {len(lost)} of {len(futures)} tasks given up, each was running on {n} "
@@ -202,9 +334,77 @@ class DaskExecutor:
         return list(self.client.run(worker_probe).values())
 
     def close(self):
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
+        """Close the client (and the LocalCluster); a client whose scheduler is gone is closed
+        within :data:`CLOSE_TIMEOUT_S` seconds, without the ``distributed`` loggers' tracebacks."""
+        if self._client is None:
+            if self.cluster is not None:
+                self.cluster.close()
+            return
+        lost = self.lost or getattr(self._client, "status", "running") not in ("running", "closed")
+        with quiet_distributed() if lost else contextlib.nullcontext():
+            try:
+                self._client.close(timeout=CLOSE_TIMEOUT_S if lost else "60s")
+            except Exception:  # noqa: BLE001 - closing must never hide what ended the run
+                if not lost:
+                    raise
+            if self.cluster is not None:
+                self.cluster.close()
+        if self._quiet is not None:
+            restore_loggers(self._quiet)
+            self._quiet = None
+
+
+def _why(exc: BaseException) -> str:
+    """The first line of an exception's message (``type: message``)."""
+    text = str(exc).strip().splitlines()
+    return f"{type(exc).__name__}: {text[0][:200]}" if text else type(exc).__name__
+
+
+def _seconds(timeout) -> float:
+    from dask.utils import parse_timedelta
+
+    return float(parse_timedelta(timeout, default="s") or 30.0)
+
+
+def _connect(client_cls, address: str):
+    """A client of the scheduler at ``address``; :class:`SchedulerLost` when none answers within
+    Dask's ``distributed.comm.timeouts.connect`` (e.g. ``DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT=10s``)
+    and a few seconds more (a socket that accepts and never speaks makes Dask's own connect wait
+    for ever: the attempt is then abandoned in its daemon thread); :class:`UserError` when the
+    address is not one."""
+    import threading
+
+    import dask
+
+    timeout = dask.config.get("distributed.comm.timeouts.connect", "30s")
+    deadline = _seconds(timeout) + 5.0
+    got: dict = {}
+
+    def attempt():
+        try:
+            got["client"] = client_cls(address, timeout=timeout)
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            got["error"] = exc
+
+    old = silence_distributed()
+    try:
+        t = threading.Thread(target=attempt, name="pbrbench-dask-connect", daemon=True)
+        t.start()
+        t.join(deadline)
+    finally:
+        restore_loggers(old)
+    exc = got.get("error")
+    if "client" in got:
+        return got["client"]
+    if exc is None:
+        raise SchedulerLost(address, f"did not answer within {deadline:.0f} s (something there accepts "
+                            "connections but does not speak Dask)")
+    if isinstance(exc, (OSError, TimeoutError)):
+        raise SchedulerLost(address, f"did not answer within {timeout} ({_why(exc)})") from None
+    if isinstance(exc, (ValueError, TypeError)):
+        raise UserError(f"--scheduler {address}: not a Dask scheduler address ({_why(exc)}); give one like "
+                        "tcp://HOST:8786") from None
+    raise exc
 
 
 def make_executor(name: str, *, scheduler=None, workers=None, variant=None, settings=None):

@@ -165,13 +165,48 @@ def start(store, run_id: str, *, interval: float = HEARTBEAT_S) -> Heartbeat | N
     return Heartbeat(store.path, run_id, interval)
 
 
+def ending_status(status: str, exc: BaseException | None = None) -> str:
+    """The status to record for a run that ends with ``status`` while ``exc`` propagates.
+
+    An exception may say how the run it ends should read (its ``run_status`` attribute): a lost
+    Dask scheduler (:class:`pbrbench.bench.executors.SchedulerLost`) leaves an ``interrupted`` run,
+    not a ``failed`` one, since every job it stored is kept and ``--resume`` finishes it.  Only a
+    ``failed`` status is changed, and only to ``interrupted``.
+
+    Parameters
+    ----------
+    status : str
+        The status the caller would record.
+    exc : BaseException, optional
+        The exception in flight (default: the one being handled, :func:`sys.exc_info`).
+
+    Returns
+    -------
+    str
+        The status to record.
+    """
+    exc = exc if exc is not None else sys.exc_info()[1]
+    if status == "failed" and getattr(exc, "run_status", None) == "interrupted":
+        return "interrupted"
+    return status
+
+
 def finish(store, run_id: str, status: str, *, variant: str | None = None, heartbeat: Heartbeat | None = None,
            log=None) -> bool:
     """Stop the heartbeat and record the final status; a failure to record it (full or read-only
     store) is reported in one line and does not replace the error that ended the run: the run then
-    reads as interrupted and can be resumed.  Returns whether the status was recorded."""
+    reads as interrupted and can be resumed.  Returns whether the status was recorded.
+
+    Called from a ``finally`` block, it records the status that the exception ending the run asks
+    for (:func:`ending_status`) and tells that exception the run's id (``run_id``, where it has
+    one), so that its message names the run to resume."""
     if heartbeat is not None:
         heartbeat.stop()
+    exc = sys.exc_info()[1]
+    status = ending_status(status, exc)
+    if exc is not None and hasattr(exc, "run_id") and getattr(exc, "run_id", None) is None:
+        with contextlib.suppress(AttributeError):
+            exc.run_id = run_id
     try:
         store.set_status(run_id, status, variant=variant)
         return True
