@@ -88,6 +88,21 @@ def as_stack(images, bit_depth: int | None = None) -> tuple[np.ndarray, int]:
     return arr, levels
 
 
+# numpydoc fragments shared by the methods' docstrings (pbrbench.infer._docstring)
+DOCS = {
+    "bracket": """\
+images : array (K, H, W[, C]) or sequence, unsigned integers
+exposure_times : sequence of K floats, strictly increasing, seconds""",
+    "merge_bracket": """\
+images : array (K, H, W[, C]) or sequence, unsigned integers
+exposure_times : sequence of K floats, strictly increasing, seconds (for a
+    ``"mitsunaga1999"`` response, pass ``response.exposure_times``)""",
+    "calibrated": """\
+CameraResponse
+    With ``method`` the method's name in :data:`pbrbench.infer.hdr.CALIBRATION_METHODS`.""",
+}
+
+
 def check_times(exposure_times, K: int) -> np.ndarray:
     """``exposure_times`` as a (K,) float array, finite, > 0 and strictly increasing."""
     t = as_array(exposure_times, "exposure_times")

@@ -10,8 +10,10 @@ import numpy as np
 import scipy.sparse as sp
 
 from pbrbench.checks import check_int, check_method, check_number
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.hdr._common import (
     CALIBRATION_WEIGHTINGS,
+    DOCS,
     as_stack,
     check_informative,
     check_times,
@@ -48,6 +50,7 @@ def _smoothness_operator(pos: np.ndarray, w: np.ndarray) -> np.ndarray:
     return (D.T @ sp.diags(ww / ww.sum()) @ D).toarray()
 
 
+@docstring(DOCS)
 def calibrate_debevec1997(images, exposure_times, *, smoothness: float = 1e-7, samples: int = 4096,
                           weighting: str = "hat", seed: int = 0, bit_depth: int | None = None) -> CameraResponse:
     r"""Recover the inverse response with the method of Debevec & Malik (1997).
@@ -65,8 +68,7 @@ def calibrate_debevec1997(images, exposure_times, *, smoothness: float = 1e-7, s
 
     Parameters
     ----------
-    images : array (K, H, W[, C]) or sequence, unsigned integers
-    exposure_times : sequence of K floats, strictly increasing, seconds
+    %(bracket)s
     smoothness : float
         ``lambda``.  The penalty actually added is ``lambda * A * s^2 * mean_u[w^2 g_uu^2]``:
         ``A`` the total data weight (so ``lambda`` does not depend on the sample count), the
@@ -85,8 +87,7 @@ def calibrate_debevec1997(images, exposure_times, *, smoothness: float = 1e-7, s
 
     Returns
     -------
-    CameraResponse
-        With ``method == "debevec1997"``.
+    %(calibrated)s
 
     References
     ----------

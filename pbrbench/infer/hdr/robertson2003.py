@@ -10,7 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_int, check_tolerance
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.hdr._common import (
+    DOCS,
     as_stack,
     check_informative,
     check_times,
@@ -24,6 +26,7 @@ from pbrbench.infer.hdr.response import CameraResponse
 __all__ = ["calibrate_robertson2003"]
 
 
+@docstring(DOCS)
 def calibrate_robertson2003(images, exposure_times, *, max_iter: int = 30, tol: float = 1e-4,
                             samples: int = 50000, seed: int = 0, bit_depth: int | None = None) -> CameraResponse:
     r"""Recover the inverse response with the ML alternation of Robertson et al. (1999, 2003).
@@ -56,8 +59,7 @@ def calibrate_robertson2003(images, exposure_times, *, max_iter: int = 30, tol: 
 
     Returns
     -------
-    CameraResponse
-        With ``method == "robertson2003"``.
+    %(calibrated)s
 
     References
     ----------

@@ -29,6 +29,8 @@ Methods
 from __future__ import annotations
 
 from pbrbench.checks import call_method
+from pbrbench.infer._docstring import docstring
+from pbrbench.infer.hdr._common import DOCS
 from pbrbench.infer.hdr.merge.debevec1997 import MERGE_WEIGHTINGS, merge_debevec1997
 from pbrbench.infer.hdr.merge.granados2010 import merge_granados2010
 
@@ -43,14 +45,13 @@ MERGE_METHODS = {
 }
 
 
+@docstring(DOCS)
 def merge_hdr(images, exposure_times, response, *, method: str = DEFAULT_MERGE, **options):
     """Merge an exposure bracket into linear radiance with the merge method ``method``.
 
     Parameters
     ----------
-    images : array (K, H, W[, C]) or sequence, unsigned integers
-    exposure_times : sequence of K floats, strictly increasing, seconds (for a
-        ``"mitsunaga1999"`` response, pass ``response.exposure_times``)
+    %(merge_bracket)s
     response : CameraResponse
         From :func:`pbrbench.infer.hdr.calibrate_response` (or built by hand).
     method : str

@@ -9,7 +9,9 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import check_method
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.hdr._common import (
+    DOCS,
     as_stack,
     check_noise_model,
     check_response,
@@ -27,6 +29,7 @@ __all__ = ["MERGE_WEIGHTINGS", "merge_debevec1997"]
 MERGE_WEIGHTINGS = ("variance", "hat", "uniform", "gaussian")
 
 
+@docstring(DOCS)
 def merge_debevec1997(images, exposure_times, response: CameraResponse, *, weighting: str = "variance",
                       noise_model: tuple[float, float] | None = None, return_mask: bool = False):
     r"""Merge an exposure bracket into linear radiance (up to one global scale), in the log domain.
@@ -53,9 +56,7 @@ def merge_debevec1997(images, exposure_times, response: CameraResponse, *, weigh
 
     Parameters
     ----------
-    images : array (K, H, W[, C]) or sequence, unsigned integers
-    exposure_times : sequence of K floats, strictly increasing, seconds (for a
-        ``"mitsunaga1999"`` response, pass ``response.exposure_times``)
+    %(merge_bracket)s
     response : CameraResponse
         One channel is broadcast to all image channels.
     weighting : {"variance", "hat", "uniform", "gaussian"}
