@@ -74,6 +74,34 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
     return rows
 
 
+UNFINISHED = ("interrupted", "running", "failed")
+
+
+def unfinished_lines(*runs: tuple[str, dict | None, int]) -> list[str]:
+    """One line per run that did not finish (``interrupted``, ``running`` or ``failed``): its status,
+    how many jobs it stored, and that its missing scores show as only-a / only-b.
+
+    Parameters
+    ----------
+    runs : tuple of (str, dict or None, int)
+        ``(run id, the stored run, jobs it stored)`` for run A, then run B.
+
+    Returns
+    -------
+    list of str
+        The lines, none when both runs finished.
+    """
+    out = []
+    for (rid, run, n), side, other in zip(runs, ("A", "B"), ("only-b", "only-a"), strict=False):
+        status = (run or {}).get("status")
+        if status not in UNFINISHED:
+            continue
+        hint = ("wait for it to finish" if status == "running" else f"finish it with `pbrbench run --resume {rid}`")
+        out.append(f"note: run {side} {rid} is {status} ({n} job{'s' if n != 1 else ''} stored): the scores it lacks "
+                   f"show as {other}; {hint} and compare again")
+    return out
+
+
 def run(args) -> int:
     from pbrbench.cli.common import open_store, settings
     from pbrbench.report.html import fmt
@@ -81,10 +109,10 @@ def run(args) -> int:
     st = settings(args)
     with open_store(st) as store:
         a = store.resolve_run(args.run_a)
-        a_scores, run_a = store.scores(a, task=args.task), store.get_run(a)
+        a_scores, run_a, a_jobs = store.scores(a, task=args.task), store.get_run(a), len(store.done_jobs(a))
         if args.store_b is None:
             b = store.resolve_run(args.run_b)
-            b_scores, run_b = store.scores(b, task=args.task), store.get_run(b)
+            b_scores, run_b, b_jobs = store.scores(b, task=args.task), store.get_run(b), len(store.done_jobs(b))
     if args.store_b is not None:
         from pathlib import Path
 
@@ -94,7 +122,7 @@ def run(args) -> int:
             raise UserError(f"--store-b {args.store_b}: no results database there; pass the store of RUN_B")
         with open_store(st.with_(store=args.store_b)) as store_b:
             b = store_b.resolve_run(args.run_b)
-            b_scores, run_b = store_b.scores(b, task=args.task), store_b.get_run(b)
+            b_scores, run_b, b_jobs = store_b.scores(b, task=args.task), store_b.get_run(b), len(store_b.done_jobs(b))
     rows = differences(a_scores, b_scores, rel=args.rel)
     runs = (run_a, run_b)
     counts = {}
@@ -102,6 +130,8 @@ def run(args) -> int:
         counts[r["direction"]] = counts.get(r["direction"], 0) + 1
     shown = [r for r in rows if args.all or r["direction"] != "same"]
     print(f"compare {a} -> {b}: " + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+    for line in unfinished_lines((a, run_a, a_jobs), (b, run_b, b_jobs)):
+        print(line)
     n_hash = len({(r["scene"]) for r in rows if r["scene_changed"]})
     if n_hash:
         print(f"note: {n_hash} scene(s) have different content hashes in the two runs (scene file, data or render "

@@ -180,3 +180,51 @@ def test_stale_scratch_of_dead_processes_is_swept(tmp_path):
         d.mkdir()
     removed = remove_stale(str(tmp_path))
     assert removed == [str(dead)] and mine.is_dir() and other.is_dir()
+
+
+def test_compare_with_an_interrupted_run_says_so_in_one_line(tmp_path, capsys):
+    """The interrupted run B's missing scores are not silently 'only-a': one line says B is
+    interrupted, how many jobs it stored, and how to finish it."""
+    from pbrbench.cli.main import main
+    from tests.fakes import fake_run
+
+    full = fake_run(tmp_path)
+    with Store(tmp_path / "h.sqlite") as s:
+        rid = s.create_run(quality="draft", env={})
+        first = next(r for r in s.scores(full.run_id))
+        s.add_job_result(rid, first["job"], first["task"], [r for r in s.scores(full.run_id) if r["job"] == first["job"]])
+        s.set_process(rid, host=socket.gethostname(), pid=_dead_pid(), pid_start=None)
+    assert main(["compare", full.run_id, rid, "--store", str(tmp_path / "h.sqlite")]) == 0
+    out = capsys.readouterr().out
+    notes = [ln for ln in out.splitlines() if ln.startswith("note: run")]
+    assert notes == [f"note: run B {rid} is interrupted (1 job stored): the scores it lacks show as only-a; "
+                     f"finish it with `pbrbench run --resume {rid}` and compare again"], out
+    assert "only-a" in out.splitlines()[0]
+    capsys.readouterr()
+    assert main(["compare", full.run_id, full.run_id, "--store", str(tmp_path / "h.sqlite")]) == 0
+    assert "note: run" not in capsys.readouterr().out   # two finished runs: no note
+
+
+def test_a_lost_scheduler_records_interrupted_not_failed(tmp_path):
+    """lifecycle.finish, called while SchedulerLost propagates, records 'interrupted' and names the run."""
+    from pbrbench.bench.executors import SchedulerLost
+
+    with Store(tmp_path / "h.sqlite") as s:
+        rid = s.create_run(quality="draft", env={})
+        exc = SchedulerLost("tcp://127.0.0.1:1", "lost the connection")
+        try:
+            try:
+                raise exc
+            finally:
+                L.finish(s, rid, "failed")
+        except SchedulerLost:
+            pass
+        assert s.get_run(rid)["status"] == "interrupted" and f"--resume {rid}" in str(exc)
+        try:
+            try:
+                raise RuntimeError("a bug")
+            finally:
+                L.finish(s, rid, "failed")
+        except RuntimeError:
+            pass
+        assert s.get_run(rid)["status"] == "failed"
