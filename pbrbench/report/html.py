@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import re
 from collections import defaultdict
 from pathlib import Path
@@ -283,7 +282,7 @@ def history_figures(store, run_id: str, info: dict, quality_name: str, out_dir: 
             png = history_png(f"{task}: {metric} under {cond} (mean over scenes; {quality_name})", runs, series,
                               ylabel=metric, marks=marks)
             name = f"history/{_anchor(task)}-{_anchor(cond)}.png"
-            (out_dir / name).write_bytes(png)
+            _write(out_dir / name, png)
             out.append({"task": task, "metric": metric, "condition": cond, "n_runs": len(runs), "src": name,
                         "anchor": f"h-{_anchor(task)}-{_anchor(cond)}"})
     return out
@@ -430,10 +429,20 @@ def _job_errors(errors: dict[str, str]) -> list[dict]:
     return out
 
 
-def _write(path: Path, text: str):
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(text, encoding="utf-8")
-    os.replace(tmp, path)
+def _write(path: Path, text: str | bytes):
+    """Write a page (text) or an image (bytes) of the report atomically: a full or read-only disk
+    is one line naming the file and ``--out``, and leaves no temporary file behind."""
+    from pbrbench.errors import disk_error
+    from pbrbench.io import write_bytes, write_text
+
+    try:
+        (write_bytes if isinstance(text, bytes) else write_text)(path, text)
+    except OSError as exc:
+        raise disk_error(exc, f"report file {path}", option="--out") from None
+
+
+def _style(out_dir: Path):
+    _write(out_dir / "style.css", (TEMPLATE_DIR / "style.css").read_text())
 
 
 def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None = None) -> Path:
@@ -441,7 +450,7 @@ def write_report(store, run_id: str, *, out_dir: str | Path, status: str | None 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     ctx = build_context(store, run_id, run_dir=out_dir, status=status)
-    (out_dir / "style.css").write_text((TEMPLATE_DIR / "style.css").read_text(), encoding="utf-8")
+    _style(out_dir)
     for t in ctx["tasks"]:
         _write(out_dir / f"task-{t['name']}.html", render_page("task.html", dict(ctx, t=t, page=f"task-{t['name']}")))
     _write(out_dir / "history.html", render_page("history.html", dict(ctx, page="history")))
@@ -458,7 +467,7 @@ def write_compare(path: str | Path, runs: tuple[dict, dict], rows: list[dict], c
     allowance of each comparison (2 combined standard errors)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    (path.parent / "style.css").write_text((TEMPLATE_DIR / "style.css").read_text(), encoding="utf-8")
+    _style(path.parent)
     order = {"worse": 0, "better": 1, "only-a": 2, "only-b": 3, "same": 4}
     by_task = defaultdict(list)
     for r in sorted(rows, key=lambda r: (order.get(r["direction"], 9), r["scene"], r["condition"], r["algorithm"], r["metric"])):

@@ -94,3 +94,24 @@ def test_store_in_an_unwritable_place(tmp_path):
     blocker.write_text("x")
     with pytest.raises(DiskError, match=r"results database .*file/h\.sqlite.*a file stands where a directory"):
         Store(blocker / "h.sqlite")
+
+
+def test_a_full_out_while_the_report_is_written_names_the_file_and_leaves_no_temporary(tmp_path, monkeypatch):
+    """The report's pages and images are written atomically: ENOSPC is one line naming the file and
+    --out, and no temporary file stays beside it."""
+    import errno
+
+    import pbrbench.io as pio
+    from pbrbench.errors import DiskError
+    from pbrbench.report.html import write_compare
+
+    def full(fd):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(pio.os, "fsync", full)
+    out = tmp_path / "cmp"
+    with pytest.raises(DiskError) as err:
+        write_compare(out / "index.html", ({"id": "a"}, {"id": "b"}), [], {})
+    msg = str(err.value)
+    assert "\n" not in msg and str(out / "style.css") in msg and "--out" in msg and "disk is full" in msg, msg
+    assert sorted(p.name for p in out.iterdir()) == [], list(out.iterdir())
