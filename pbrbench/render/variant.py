@@ -351,8 +351,35 @@ def mitsuba(variant: str | None = None):
     if choice.variant not in mi.variants():
         raise UserError(f"variant {choice.variant!r} is not in this mitsuba build; choose one of {', '.join(mi.variants())}")
     mi.set_variant(choice.variant)
-    _STATE.update(mi=mi, choice=choice)
+    _STATE.update(mi=mi, choice=choice, appender=_route_logs(mi))
     return mi
+
+
+def _route_logs(mi):
+    """Send Mitsuba's log lines to stderr (prefixed ``pbrbench: mitsuba``, without colours), never to
+    stdout, which carries only the results that scripts parse; its progress bars are dropped.
+    Returns the appender (kept alive in ``_STATE``), or None where the logger cannot be reached."""
+    try:
+        logger = mi.Thread.thread().logger()
+    except Exception:  # noqa: BLE001 - a build without the logger API: leave Mitsuba's default
+        return None
+    if logger is None:
+        return None
+
+    class StderrAppender(mi.Appender):
+        def append(self, level, text):
+            from pbrbench.errors import printable
+
+            for line in str(text).splitlines() or [""]:
+                print(f"pbrbench: mitsuba: {printable(line)}", file=sys.stderr, flush=True)
+
+        def log_progress(self, progress, name, formatted, eta, ptr=None):
+            pass
+
+    appender = StderrAppender()
+    logger.clear_appenders()
+    logger.add_appender(appender)
+    return appender
 
 
 def _import_mitsuba():
