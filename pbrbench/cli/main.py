@@ -137,7 +137,11 @@ def main(argv: list[str] | None = None) -> int:
 
             writing = exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EPERM, errno.ENOTDIR,
                                     errno.EEXIST, errno.EISDIR)
-            _say(f"error: {disk_error(exc, 'cannot write' if writing else 'cannot read or write')}")
+            what = "cannot write" if writing else "cannot read or write"
+            if exc.filename is None:   # a failed write() names no file: name the places this command writes
+                places = [f"--{o} {getattr(args, o)}" for o in ("out", "store", "cache") if getattr(args, o, None)]
+                what += f" (in {', '.join(places)})" if places else " (in --out, --store or --cache)"
+            _say(f"error: {disk_error(exc, what)}")
             return EXIT_USER
         except sqlite3.Error as exc:
             if args.debug:

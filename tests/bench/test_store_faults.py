@@ -115,3 +115,19 @@ def test_a_full_out_while_the_report_is_written_names_the_file_and_leaves_no_tem
     msg = str(err.value)
     assert "\n" not in msg and str(out / "style.css") in msg and "--out" in msg and "disk is full" in msg, msg
     assert sorted(p.name for p in out.iterdir()) == [], list(out.iterdir())
+
+
+def test_a_write_that_names_no_file_names_the_places_of_the_command(tmp_path, monkeypatch, capsys):
+    """ENOSPC from write() carries no file name: the one line names --out / --store and the fix."""
+    import errno
+
+    import pbrbench.cli.history as hist
+    from pbrbench.cli.main import main
+
+    def full(args):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(hist, "run", full)
+    assert main(["history", "--store", str(tmp_path / "h.sqlite")]) == 1
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and f"--store {tmp_path / 'h.sqlite'}" in err and "free some space" in err, err
