@@ -24,6 +24,7 @@ __all__ = [
     "check_noise_model",
     "check_response",
     "check_times",
+    "prepare_bracket",
     "estimate_noise",
     "fill_unexposed",
     "finalise",
@@ -159,6 +160,16 @@ def check_informative(Z: np.ndarray, levels: int) -> None:
                 f"images: channel {c} carries no information about the response: no pixel changes level between "
                 "exposures (the exposures are alike, constant or clipped); use a bracket of different exposure "
                 "times over a scene with varied brightness")
+
+
+
+def prepare_bracket(images, exposure_times, bit_depth):
+    """The checked input of every calibration: ``(Z, levels, t)`` from :func:`as_stack`,
+    :func:`check_times` and :func:`check_informative`, in that order."""
+    Z, levels = as_stack(images, bit_depth)
+    t = check_times(exposure_times, Z.shape[0])
+    check_informative(Z, levels)
+    return Z, levels, t
 
 
 def sample_pixels(Z: np.ndarray, levels: int, samples: int, seed, per_level: int = 2) -> list[np.ndarray]:

@@ -14,11 +14,9 @@ from pbrbench.infer._docstring import docstring
 from pbrbench.infer.hdr._common import (
     CALIBRATION_WEIGHTINGS,
     DOCS,
-    as_stack,
-    check_informative,
-    check_times,
     finalise,
     level_weights,
+    prepare_bracket,
     sample_pixels,
 )
 from pbrbench.infer.hdr.response import CameraResponse
@@ -94,9 +92,7 @@ def calibrate_debevec1997(images, exposure_times, *, smoothness: float = 1e-7, s
     P. E. Debevec and J. Malik, "Recovering High Dynamic Range Radiance Maps from Photographs",
     SIGGRAPH 1997.
     """
-    Z, levels = as_stack(images, bit_depth)
-    t = check_times(exposure_times, Z.shape[0])
-    check_informative(Z, levels)
+    Z, levels, t = prepare_bracket(images, exposure_times, bit_depth)
     lam = check_number(smoothness, "smoothness", lo=0.0, hi=1e6)
     n_samp = check_int(samples, "samples", 1)
     check_method(weighting, CALIBRATION_WEIGHTINGS, "weighting")

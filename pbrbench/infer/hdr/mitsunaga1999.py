@@ -10,10 +10,8 @@ import numpy as np
 
 from pbrbench.checks import check_int, check_tolerance
 from pbrbench.infer.hdr._common import (
-    as_stack,
-    check_informative,
-    check_times,
     finalise,
+    prepare_bracket,
     sample_pixels,
 )
 from pbrbench.infer.hdr.response import CameraResponse
@@ -177,9 +175,7 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     S. K. Nayar, "Determining the camera response from images: what is knowable?", IEEE PAMI
     25(11), 2003 (the exponential ambiguity).
     """
-    Z, levels = as_stack(images, bit_depth)
-    t = check_times(exposure_times, Z.shape[0])
-    check_informative(Z, levels)
+    Z, levels, t = prepare_bracket(images, exposure_times, bit_depth)
     if degree is not None:
         degree = check_int(degree, "degree", 1, 20)
     max_degree = check_int(max_degree, "max_degree", 1, 20)

@@ -13,11 +13,9 @@ from pbrbench.checks import check_int, check_tolerance
 from pbrbench.infer._docstring import docstring
 from pbrbench.infer.hdr._common import (
     DOCS,
-    as_stack,
-    check_informative,
-    check_times,
     finalise,
     level_weights,
+    prepare_bracket,
     sample_pixels,
 )
 from pbrbench.infer.hdr.debevec1997 import calibrate_debevec1997
@@ -67,9 +65,7 @@ def calibrate_robertson2003(images, exposure_times, *, max_iter: int = 30, tol: 
     exposures", ICIP 1999; "Estimation-theoretic approach to dynamic range enhancement using
     multiple exposures", Journal of Electronic Imaging 12(2), 2003.
     """
-    Z, levels = as_stack(images, bit_depth)
-    t = check_times(exposure_times, Z.shape[0])
-    check_informative(Z, levels)
+    Z, levels, t = prepare_bracket(images, exposure_times, bit_depth)
     max_iter = check_int(max_iter, "max_iter", 1)
     tol = check_tolerance(tol)
     n_samp = check_int(samples, "samples", 1)

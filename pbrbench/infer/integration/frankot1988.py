@@ -49,11 +49,6 @@ def integrate_frankot1988(normals=None, *, gradients=None, mask=None, pixel_size
 
     on the whole (periodic) rectangle, gradients outside the mask set to 0 (module docstring).
 
-    Parameters
-    ----------
-    %(inputs)s
-    %(pixel_size)s
-
     %(rectangle)s
 
     References

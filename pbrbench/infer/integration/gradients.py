@@ -58,6 +58,18 @@ mask : (H, W) bool, optional
 pixel_size : float
     World size of one pixel; the height is returned in the same world units.""",
     "rectangle": """\
+Parameters
+----------
+normals : (H, W, 3) array, optional
+    Normals in the camera frame (x right, y up, z toward the camera).
+gradients : pair of (H, W) arrays, optional
+    ``(p, q)``, ``p = f_x``, ``q = f_y`` in the y-up frame, given instead of ``normals``.
+mask : (H, W) bool, optional
+    Domain (default: finite, non-zero normals; ``N_z <= 1e-3`` dropped); the gradients
+    outside it are set to 0 and the whole rectangle is integrated.
+pixel_size : float
+    World size of one pixel; the height is returned in the same world units.
+
 Returns
 -------
 z : (H, W) float64

@@ -43,11 +43,6 @@ def integrate_path(normals=None, *, gradients=None, mask=None, pixel_size: float
     Algorithm 1.2.  The gradients outside the mask are set to 0 and the path runs over the whole
     rectangle, so a path that leaves the domain carries a wrong offset back into it.
 
-    Parameters
-    ----------
-    %(inputs)s
-    %(pixel_size)s
-
     %(rectangle)s
 
     References

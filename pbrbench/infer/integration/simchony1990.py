@@ -36,11 +36,6 @@ def integrate_simchony1990(normals=None, *, gradients=None, mask=None, pixel_siz
     (module docstring; Simchony, Chellappa & Shao 1990).  Gradients outside the mask are set
     to 0.
 
-    Parameters
-    ----------
-    %(inputs)s
-    %(pixel_size)s
-
     %(rectangle)s
 
     References

@@ -8,11 +8,19 @@ import numpy as np
 from pbrbench.checks import check_finite, check_mask, check_number, check_positive
 from pbrbench.infer.poisson import solve_gradient_field
 
-__all__ = ["ANCHORS", "anchor_reflectance", "check_percentile", "check_threshold", "log_gradients", "reconstruct",
+__all__ = ["ANCHORS", "DOCS", "anchor_reflectance", "check_percentile", "check_threshold", "log_gradients", "reconstruct",
            "valid_pixels"]
 
 ANCHORS = ("brightest", "mean")
 
+
+# numpydoc fragments shared by the methods' docstrings (pbrbench.infer._docstring)
+DOCS = {
+    "returns": """\
+Returns
+-------
+reflectance, shading : arrays of the image's shape, float64; 0 outside the valid pixels.""",
+}
 
 def check_threshold(threshold) -> float:
     """``threshold`` as a finite float >= 0 (log units per pixel)."""

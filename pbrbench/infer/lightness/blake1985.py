@@ -36,8 +36,10 @@ from pbrbench.checks import (
     check_method,
     check_number,
 )
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.lightness._common import (
     ANCHORS,
+    DOCS,
     check_percentile,
     check_threshold,
     log_gradients,
@@ -73,6 +75,7 @@ def _smooth_part(g: np.ndarray, keep: np.ndarray, m: np.ndarray, axis_valid) -> 
     return out
 
 
+@docstring(DOCS)
 def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "brightest",
                         mean_lightness: float = 0.5, mask=None, edge_rule: str = "magnitude",
                         edge_illumination: str = "keep", min_value: float | None = None,
@@ -149,9 +152,7 @@ def lightness_blake1985(image, *, threshold: float = 0.05, anchor: str = "bright
     solver : str
         Poisson solver, passed as ``method`` to :func:`~pbrbench.infer.poisson.solve_gradient_field`.
 
-    Returns
-    -------
-    reflectance, shading : arrays of the image's shape, float64; 0 outside the valid pixels.
+    %(returns)s
 
     Raises
     ------

@@ -19,8 +19,10 @@ import itertools
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_method, check_positive
+from pbrbench.infer._docstring import docstring
 from pbrbench.infer.lightness._common import (
     ANCHORS,
+    DOCS,
     check_percentile,
     check_threshold,
     log_gradients,
@@ -30,6 +32,7 @@ from pbrbench.infer.lightness._common import (
 __all__ = ["lightness_grosse2009", "select_thresholds_hold_one_out"]
 
 
+@docstring(DOCS)
 def lightness_grosse2009(image, *, threshold: float = 0.05, chromaticity_threshold: float = 0.05,
                          anchor: str = "brightest", mean_lightness: float = 0.5, mask=None,
                          min_value: float | None = None, brightest_percentile: float = 100.0,
@@ -77,9 +80,7 @@ def lightness_grosse2009(image, *, threshold: float = 0.05, chromaticity_thresho
     anchor, mean_lightness, mask, min_value, brightest_percentile, solver
         As in :func:`~pbrbench.infer.lightness.blake1985.lightness_blake1985`.
 
-    Returns
-    -------
-    reflectance, shading : arrays of the image's shape, float64; 0 outside the valid pixels.
+    %(returns)s
 
     Raises
     ------
