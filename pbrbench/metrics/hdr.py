@@ -162,14 +162,14 @@ def hdr_scores(estimate, truth, *, mask=None) -> dict[str, float]:
     return out
 
 
-METRICS = table(
-    ("log2_rmse", "lower", "stops", "log2 radiance RMSE after the one free global scale", "hdr_scores"),
-    ("log2_rmse_c0", "lower", "stops", "log2 radiance RMSE of the red channel", "hdr_scores"),
-    ("log2_rmse_c1", "lower", "stops", "log2 radiance RMSE of the green channel", "hdr_scores"),
-    ("log2_rmse_c2", "lower", "stops", "log2 radiance RMSE of the blue channel", "hdr_scores"),
-    ("bright1", "lower", "stops", "log2 radiance RMSE on the brightest 1 % of the pixels", "hdr_scores"),
-    ("dark1", "lower", "stops", "log2 radiance RMSE on the darkest 1 % of the pixels", "hdr_scores"),
-    ("invalid_fraction", "lower", "fraction", "fraction of pixels without a finite positive estimate", "hdr_scores"),
-    ("bracket_coverage", "higher", "fraction", "fraction of the pixels that at least one exposure measures (neither black nor saturated) in every channel", ""),
-    ("response_rmse", "lower", "stops", "RMSE of the recovered inverse response vs the true one (log2, per-channel scale removed)", "response_rmse"),
-)
+METRICS = table("""
+log2_rmse        | lower  | stops    | hdr_scores    | log2 radiance RMSE after the one free global scale
+log2_rmse_c0     | lower  | stops    | hdr_scores    | log2 radiance RMSE of the red channel
+log2_rmse_c1     | lower  | stops    | hdr_scores    | log2 radiance RMSE of the green channel
+log2_rmse_c2     | lower  | stops    | hdr_scores    | log2 radiance RMSE of the blue channel
+bright1          | lower  | stops    | hdr_scores    | log2 radiance RMSE on the brightest 1 % of the pixels
+dark1            | lower  | stops    | hdr_scores    | log2 radiance RMSE on the darkest 1 % of the pixels
+invalid_fraction | lower  | fraction | hdr_scores    | fraction of pixels without a finite positive estimate
+bracket_coverage | higher | fraction | -             | fraction of the pixels that at least one exposure measures (neither black nor saturated) in every channel
+response_rmse    | lower  | stops    | response_rmse | RMSE of the recovered inverse response vs the true one (log2, per-channel scale removed)
+""")

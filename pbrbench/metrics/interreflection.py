@@ -33,18 +33,13 @@ from pbrbench.metrics.table import table
 
 __all__ = ["METRICS", "radiosity_scores", "chromaticity_error", "delta_e2000"]
 
-METRICS = table(
-    ("radiosity_rel_error", "lower", "", "sum |predicted - rendered radiance| / sum rendered, over the visible surface",
-     "radiosity_scores"),
-    ("radiosity_rel_rmse", "lower", "", "RMS of predicted - rendered radiance / mean rendered radiance, visible surface",
-     "radiosity_scores"),
-    ("radiosity_abs_bias", "lower", "", "|sum predicted / sum rendered - 1|: the missing (or extra) light overall",
-     "radiosity_scores"),
-    ("chromaticity_error", "lower", "", "luminance-weighted L1 distance of the (r, g, b) / (r + g + b) chromaticities",
-     "chromaticity_error"),
-    ("delta_e2000", "lower", "dE00", "mean CIEDE2000 colour difference, linear sRGB scaled to the reference's white",
-     "delta_e2000"),
-)
+METRICS = table("""
+radiosity_rel_error | lower | -    | radiosity_scores   | sum |predicted - rendered radiance| / sum rendered, over the visible surface
+radiosity_rel_rmse  | lower | -    | radiosity_scores   | RMS of predicted - rendered radiance / mean rendered radiance, visible surface
+radiosity_abs_bias  | lower | -    | radiosity_scores   | |sum predicted / sum rendered - 1|: the missing (or extra) light overall
+chromaticity_error  | lower | -    | chromaticity_error | luminance-weighted L1 distance of the (r, g, b) / (r + g + b) chromaticities
+delta_e2000         | lower | dE00 | delta_e2000        | mean CIEDE2000 colour difference, linear sRGB scaled to the reference's white
+""")
 
 
 def _pair(pred, ref, mask):

@@ -217,11 +217,11 @@ def lightness_scores(refl, shad, refl_true, shad_true, *, mask, labels=None, win
     return out
 
 
-METRICS = table(
-    ("lmse", "lower", "", "local scale-invariant MSE of the reflectance (Grosse et al. 2009, MIT variant)", "lightness_scores"),
-    ("intrinsic_lmse", "lower", "", "mean of the reflectance and shading LMSE (the published score)", "lightness_scores"),
-    ("si_mse", "lower", "", "scale-invariant MSE of the reflectance (one best global scale)", "lightness_scores"),
-    ("albedo_abs_err", "lower", "albedo", "mean absolute reflectance error, no rescaling (scores the anchor rule)", "lightness_scores"),
-    ("ratio_err_max", "lower", "fraction", "largest relative error of reflectance ratios between papers", "lightness_scores"),
-    ("ratio_err_median", "lower", "fraction", "median relative error of reflectance ratios between papers", "lightness_scores"),
-)
+METRICS = table("""
+lmse             | lower | -        | lightness_scores | local scale-invariant MSE of the reflectance (Grosse et al. 2009, MIT variant)
+intrinsic_lmse   | lower | -        | lightness_scores | mean of the reflectance and shading LMSE (the published score)
+si_mse           | lower | -        | lightness_scores | scale-invariant MSE of the reflectance (one best global scale)
+albedo_abs_err   | lower | albedo   | lightness_scores | mean absolute reflectance error, no rescaling (scores the anchor rule)
+ratio_err_max    | lower | fraction | lightness_scores | largest relative error of reflectance ratios between papers
+ratio_err_median | lower | fraction | lightness_scores | median relative error of reflectance ratios between papers
+""")

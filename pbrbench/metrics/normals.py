@@ -208,14 +208,14 @@ def height_scores(normals, z_true, domain, pixel_size, integrate=None) -> tuple[
         np.where(dom, z - z[dom].mean(), np.nan)
 
 
-METRICS = table(
-    ("normal_mean_deg", "lower", "deg", "mean angle between estimated and true normals over the domain (DiLiGenT)", "normal_scores"),
-    ("normal_median_deg", "lower", "deg", "median angle between estimated and true normals", "normal_scores"),
-    ("normal_frac_under_5deg", "higher", "fraction", "fraction of the domain with an angular error below 5 degrees", "normal_scores"),
-    ("normal_frac_under_10deg", "higher", "fraction", "fraction of the domain with an angular error below 10 degrees", "normal_scores"),
-    ("coverage", "higher", "fraction", "fraction of the domain where the method returned a valid normal", "normal_scores"),
-    ("albedo_rel_err", "lower", "fraction", "mean |albedo_est / albedo - 1| with the nominal source intensities", "albedo_scores"),
-    ("albedo_rel_err_scaled", "lower", "fraction", "relative albedo error after one global least-squares scale", "albedo_scores"),
-    ("height_rmse", "lower", "world units", "height RMSE after removing the free offset", "height_scores"),
-    ("height_rmse_rel", "lower", "fraction", "height RMSE relative to the true height range", "height_scores"),
-)
+METRICS = table("""
+normal_mean_deg         | lower  | deg         | normal_scores | mean angle between estimated and true normals over the domain (DiLiGenT)
+normal_median_deg       | lower  | deg         | normal_scores | median angle between estimated and true normals
+normal_frac_under_5deg  | higher | fraction    | normal_scores | fraction of the domain with an angular error below 5 degrees
+normal_frac_under_10deg | higher | fraction    | normal_scores | fraction of the domain with an angular error below 10 degrees
+coverage                | higher | fraction    | normal_scores | fraction of the domain where the method returned a valid normal
+albedo_rel_err          | lower  | fraction    | albedo_scores | mean |albedo_est / albedo - 1| with the nominal source intensities
+albedo_rel_err_scaled   | lower  | fraction    | albedo_scores | relative albedo error after one global least-squares scale
+height_rmse             | lower  | world units | height_scores | height RMSE after removing the free offset
+height_rmse_rel         | lower  | fraction    | height_scores | height RMSE relative to the true height range
+""")

@@ -184,14 +184,14 @@ def sfs_scores(height, normals, true_height, true_normals, mask=None, *, height_
     return out
 
 
-METRICS = table(
-    ("height_rmse", "lower", "world units", "height RMSE after removing the free offset", "sfs_scores"),
-    ("height_mae", "lower", "world units", "mean absolute height error after removing the free offset", "sfs_scores"),
-    ("height_rmse_scaled", "lower", "world units", "height RMSE after the best scale and offset", "sfs_scores"),
-    ("height_mae_scaled", "lower", "world units", "mean absolute height error after the best scale and offset", "sfs_scores"),
-    ("height_rmse_rel", "lower", "fraction", "height RMSE relative to the true height range", "sfs_scores"),
-    ("normal_mean_deg", "lower", "deg", "mean angle between estimated and true normals", "sfs_scores"),
-    ("height_rmse_flip", "lower", "world units", "height RMSE of the better of z and -z (convex/concave ambiguity)", "ambiguity_aware_scores"),
-    ("normal_mean_deg_flip", "lower", "deg", "mean normal angle of the better of z and -z", "ambiguity_aware_scores"),
-    ("light_error_deg", "lower", "deg", "angle between the estimated and the true light direction", ""),
-)
+METRICS = table("""
+height_rmse          | lower | world units | sfs_scores             | height RMSE after removing the free offset
+height_mae           | lower | world units | sfs_scores             | mean absolute height error after removing the free offset
+height_rmse_scaled   | lower | world units | sfs_scores             | height RMSE after the best scale and offset
+height_mae_scaled    | lower | world units | sfs_scores             | mean absolute height error after the best scale and offset
+height_rmse_rel      | lower | fraction    | sfs_scores             | height RMSE relative to the true height range
+normal_mean_deg      | lower | deg         | sfs_scores             | mean angle between estimated and true normals
+height_rmse_flip     | lower | world units | ambiguity_aware_scores | height RMSE of the better of z and -z (convex/concave ambiguity)
+normal_mean_deg_flip | lower | deg         | ambiguity_aware_scores | mean normal angle of the better of z and -z
+light_error_deg      | lower | deg         | -                      | angle between the estimated and the true light direction
+""")

@@ -130,9 +130,9 @@ def specular_scores(removed, diffuse_only, true_mask, valid, *, detected=None) -
     return out
 
 
-METRICS = table(
-    ("mask_iou", "higher", "fraction", "intersection over union of the detected and the true specular mask", "specular_scores"),
-    ("inside_rel", "lower", "fraction", "relative RMS error vs the diffuse-only twin inside the true specular mask", "specular_scores"),
-    ("ring_rel", "lower", "fraction", "relative RMS error vs the twin in a 3-pixel ring around the true mask", "specular_scores"),
-    ("image_rel_rmse", "lower", "fraction", "relative RMS error vs the twin over the whole object", "specular_scores"),
-)
+METRICS = table("""
+mask_iou       | higher | fraction | specular_scores | intersection over union of the detected and the true specular mask
+inside_rel     | lower  | fraction | specular_scores | relative RMS error vs the diffuse-only twin inside the true specular mask
+ring_rel       | lower  | fraction | specular_scores | relative RMS error vs the twin in a 3-pixel ring around the true mask
+image_rel_rmse | lower  | fraction | specular_scores | relative RMS error vs the twin over the whole object
+""")

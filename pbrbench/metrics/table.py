@@ -26,8 +26,12 @@ class Metric:
             raise ValueError(f"metric {self.name!r}: better={self.better!r}; use 'lower' or 'higher'")
 
 
-def table(*rows: tuple) -> dict[str, Metric]:
-    """``{name: Metric}`` from rows ``(name, better, unit, description, function)``."""
+def table(*rows) -> dict[str, Metric]:
+    """``{name: Metric}`` from rows ``(name, better, unit, description, function)``, or from one
+    text block with a row per line, ``name | better | unit | function | description`` (``-`` for
+    an empty unit or function), which is how the metrics modules write their tables."""
+    if len(rows) == 1 and isinstance(rows[0], str):
+        rows = tuple(_parse_row(line) for line in rows[0].splitlines() if line.strip())
     out: dict[str, Metric] = {}
     for r in rows:
         m = Metric(*r)
@@ -35,6 +39,15 @@ def table(*rows: tuple) -> dict[str, Metric]:
             raise ValueError(f"metric {m.name!r} is listed twice")
         out[m.name] = m
     return out
+
+
+def _parse_row(line: str) -> tuple[str, str, str, str, str]:
+    cells = [c.strip() for c in line.split("|", 4)]
+    if len(cells) != 5 or not all(cells):
+        raise ValueError(f"metrics table row {line.strip()!r}: expected 'name | better | unit | function | "
+                         "description' ('-' for an empty unit or function)")
+    name, better, unit, function, description = cells
+    return name, better, "" if unit == "-" else unit, description, "" if function == "-" else function
 
 
 def merge(*tables: dict[str, Metric]) -> dict[str, Metric]:
@@ -51,7 +64,7 @@ def merge(*tables: dict[str, Metric]) -> dict[str, Metric]:
 
 
 # metrics every task may report about an algorithm's run itself
-STATUS = table(
-    ("failed", "lower", "0/1", "1 when the algorithm raised or returned an unusable result (message in the report)", ""),
-    ("converged", "higher", "0/1", "1 when an iterative method met its own tolerance", ""),
-)
+STATUS = table("""
+failed    | lower  | 0/1 | - | 1 when the algorithm raised or returned an unusable result (message in the report)
+converged | higher | 0/1 | - | 1 when an iterative method met its own tolerance
+""")
