@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tests.corpus.infer_fuzz import Case, cases, classify
+from tests.corpus.infer_fuzz import DISPATCHERS, Case, cases, classify
 
 CASES = [c for c in cases() if not c.may_accept]
 
@@ -66,6 +66,10 @@ def test_the_corpus_is_large_and_covers_every_public_function():
 
     public = {n for n in I.__all__ if callable(getattr(I, n)) and not isinstance(getattr(I, n), type)}
     covered = {c.fn for c in CASES}
+    # a table's methods are fuzzed through their dispatcher (_every_method), so a new method needs
+    # no entry of its own in infer_fuzz
+    covered |= {fn.__name__ for disp, table in DISPATCHERS.items() if disp in covered
+                for fn in getattr(I, table).values()}
     # the aliases retinex / retinex_1d are the same functions as lightness_blake1985 / lightness_1d_horn1974
     assert public - covered <= {"retinex", "retinex_1d"}, sorted(public - covered)
     assert len(CASES) >= 1000
