@@ -239,18 +239,18 @@ def evaluate_folder(task_name: str, folder, *, methods=(), specs=(), predictions
     from pbrbench.datasets import diligent_objects, mit_objects
 
     folder = Path(folder)
-    if task_name == "photometric_stereo":
-        objs = diligent_objects(folder)
+    layouts = {   # task -> (reader, evaluation, what the layout's object folder holds)
+        "photometric_stereo": (diligent_objects, _diligent, "DiLiGenT object folder (light_directions.txt, "
+                               "001.png ..., mask.png, Normal_gt.mat)"),
+        "lightness": (mit_objects, _mit, "MIT Intrinsic Images object folder (diffuse.png, reflectance.png, "
+                      "shading.png, mask.png)"),
+    }
+    if task_name in layouts:
+        read, evaluate, layout = layouts[task_name]
+        objs = read(folder)
         if not objs:
-            raise UserError(f"{folder}: no manifest.json and no DiLiGenT object folder (light_directions.txt, "
-                            "001.png ..., mask.png, Normal_gt.mat) at or below it")
-        return _diligent(objs, folder, methods, specs, predictions, name, settings, store_run, report, log)
-    if task_name == "lightness":
-        objs = mit_objects(folder)
-        if not objs:
-            raise UserError(f"{folder}: no manifest.json and no MIT Intrinsic Images object folder (diffuse.png, "
-                            "reflectance.png, shading.png, mask.png) at or below it")
-        return _mit(objs, folder, methods, specs, predictions, name, settings, store_run, report, log)
+            raise UserError(f"{folder}: no manifest.json and no {layout} at or below it")
+        return evaluate(objs, folder, methods, specs, predictions, name, settings, store_run, report, log)
     raise UserError(f"evaluate {task_name} {folder}: not an export (no manifest.json); real data sets are read for "
                     "photometric_stereo (DiLiGenT layout) and lightness (MIT Intrinsic Images layout)")
 

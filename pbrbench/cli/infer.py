@@ -339,8 +339,8 @@ def run_retinex(args) -> int:
         raise UserError(f"{args.image}: no pixel > 0 (inside the mask); retinex works on log intensities")
     t0 = time.perf_counter()
     try:
-        refl, shad = estimate_lightness(np.where((m[..., None] if img.ndim == 3 else m), img, 0.0), method=args.method,
-                               mask=m, **opts)
+        refl, shad = estimate_lightness(np.where((m[..., None] if img.ndim == 3 else m), img, 0.0),
+                                        method=args.method, mask=m, **opts)
     except ValueError as e:
         raise UserError(f"{args.image}: retinex ({args.method}): {e}") from None
     st.next()
