@@ -171,20 +171,3 @@ class Settings:
         if self.progress is not None:
             return self.progress
         return bool(getattr(stream, "isatty", lambda: False)())
-
-    def worker_env(self) -> dict[str, str]:
-        """What a worker process needs in its environment to resolve the same settings."""
-        out = {ENV["cache"]: str(self.cache), ENV["scenes"]: str(self.scenes)}
-        if self.variant:
-            out[ENV["variant"]] = self.variant
-        if self.llvm_search:
-            out[ENV["llvm_search"]] = os.pathsep.join(self.llvm_search)
-        if self.no_cuda:
-            out[ENV["no_cuda"]] = "1"
-        if self.data_dirs:
-            out[ENV["data_dirs"]] = os.pathsep.join(self.data_dirs)
-        if self.allow_large:
-            out[ENV["allow_large"]] = "1"
-        if "DRJIT_LIBLLVM_PATH" in os.environ:
-            out["DRJIT_LIBLLVM_PATH"] = os.environ["DRJIT_LIBLLVM_PATH"]
-        return out

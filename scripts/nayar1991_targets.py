@@ -42,8 +42,8 @@ def main(argv=None) -> None:
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
+    from pbrbench.scene.load import SceneLibrary
     from pbrbench.tasks.base import Job
-    from pbrbench.tasks.common.scenes import family_scenes
     from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -64,16 +64,9 @@ def main(argv=None) -> None:
     quality = get_quality(args.quality)
     wanted = args.algorithms.split(",")
     algs = [a for a in task.builtin_algorithms() if a.name in wanted]
-    src = GroundTruthSource(args.quality, cache=RenderCache(args.cache), scenes=args.scenes)
-    if args.scenes is None:
-        family = family_scenes
-    else:
-        from pbrbench.scene.load import load_library
-
-        lib = load_library(args.scenes)
-
-        def family(fam):
-            return [s for n, s in lib.items() if n == fam or n.startswith(fam + "[")]
+    library = SceneLibrary(args.scenes) if args.scenes else SceneLibrary()
+    src = GroundTruthSource(quality, cache=RenderCache(args.cache), library=library)
+    family = library.family
     print(f"{'scene':28s} {'condition':10s} " + " ".join(f"{a.name + ' (deg, alb %, s)':>34s}" for a in algs))
     for fam in args.families:
         for spec in family(fam):

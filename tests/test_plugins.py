@@ -375,8 +375,9 @@ def test_a_plugin_file_travels_by_value_to_another_process(tmp_path, plugin_file
 def test_plugins_run_on_dask_workers(tmp_path, plugin_file):
     pytest.importorskip("distributed")
     from pbrbench.bench.executors import DaskExecutor
+    from pbrbench.settings import Settings
 
-    ex = DaskExecutor(scheduler=None, workers=1, variant=None)
+    ex = DaskExecutor(scheduler=None, workers=1, variant=None, settings=Settings.from_env())
     try:
         ex.client.run(lambda: sys.path.insert(0, str(ROOT)))
         task = TinyPS()

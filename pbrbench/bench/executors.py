@@ -137,11 +137,15 @@ class LocalExecutor:
         pass
 
 
-def worker_setup(variant: str | None, threads: int | None, env: dict, worker=None):
-    """Once per worker process: environment, Mitsuba variant and Dr.Jit thread count."""
-    os.environ.update(env)
+def worker_setup(variant: str | None, threads: int | None, settings, worker=None):
+    """Once per worker process: the run's settings (an object, not the environment: the variant
+    choice reads them), the Mitsuba variant and the Dr.Jit thread count."""
     with RENDER_LOCK:
+        from pbrbench.render import variant as variants
         from pbrbench.render.variant import mitsuba
+
+        if settings is not None:
+            variants.configure(settings)
 
         mitsuba(variant)
         if threads:
@@ -162,7 +166,7 @@ def worker_source(source):
     return plugin.sources.setdefault(source.identity(), source)
 
 
-def make_worker_plugin(variant: str | None, threads: int | None, env: dict | None = None):
+def make_worker_plugin(variant: str | None, threads: int | None, settings=None):
     """A Dask WorkerPlugin calling :func:`worker_setup` (class made here: distributed is optional)."""
     from distributed.diagnostics.plugin import WorkerPlugin
 
@@ -178,7 +182,7 @@ def make_worker_plugin(variant: str | None, threads: int | None, env: dict | Non
             self.sources = {}
             worker_setup(*self.args, worker=worker)
 
-    return MitsubaWorkerPlugin((variant, threads, dict(env or {})))
+    return MitsubaWorkerPlugin((variant, threads, settings))
 
 
 def worker_probe() -> dict:
@@ -200,15 +204,12 @@ class DaskExecutor:
 
     name = "dask"
 
-    def __init__(self, *, scheduler: str | None, workers: int | None, variant: str | None, settings=None):
+    def __init__(self, *, scheduler: str | None, workers: int | None, variant: str | None, settings):
         try:
             from distributed import Client, LocalCluster
         except ImportError:
             raise UserError("--executor dask needs Dask distributed; install it with "
                             "`pip install 'dask[distributed]'` (or `pip install pbrbench[distributed]`)") from None
-        from pbrbench.settings import Settings
-
-        settings = settings or Settings.from_env()
         self.cluster = None
         threads = settings.worker_threads
         self.address = scheduler or "LocalCluster"
@@ -219,11 +220,11 @@ class DaskExecutor:
         # a --scheduler is connected on first use, inside the run: one that never answers leaves an
         # interrupted run whose message says how to resume it, not a run that reads 'running'
         if scheduler:
-            self._plugin = make_worker_plugin(variant, threads, settings.worker_env())
+            self._plugin = make_worker_plugin(variant, threads, settings)
         else:
             n = workers or max(1, (os.cpu_count() or 2) // 2)
             threads = threads or max(1, (os.cpu_count() or 1) // n)
-            self._plugin = make_worker_plugin(variant, threads, settings.worker_env())
+            self._plugin = make_worker_plugin(variant, threads, settings)
             self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                                         dashboard_address=None, silence_logs=40)
             self._setup(Client(self.cluster))
@@ -407,7 +408,7 @@ def _connect(client_cls, address: str):
     raise exc
 
 
-def make_executor(name: str, *, scheduler=None, workers=None, variant=None, settings=None):
+def make_executor(name: str, *, scheduler=None, workers=None, variant=None, settings):
     if name == "local":
         return LocalExecutor()
     if name == "dask":

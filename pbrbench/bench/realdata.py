@@ -394,9 +394,8 @@ def _store(ev: Evaluation, results, task, algs, settings, report: bool, what: st
     from pbrbench.bench.run import _check_scores, _write_files
     from pbrbench.bench.store import Store
     from pbrbench.report.figures import job_figures, slug
-    from pbrbench.settings import Settings
-
-    settings = settings or Settings.from_env()
+    if settings is None:
+        raise TypeError("settings: storing an evaluation needs the run's Settings (pass settings=, or store_run=False)")
     info = {task.name: {"description": f"{task.description} Real data: {what}.", "conditions": [CONDITION],
                         "headline_metric": ev.headline[0], "algorithms": [a.name for a in algs],
                         "algorithm_kinds": {a.name: a.kind for a in algs},

@@ -168,7 +168,7 @@ def comparison_record(comparison) -> dict:
 
 
 # ----------------------------------------------------------------------------- the run
-def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, source=None, executor=None,
+def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source=None, executor=None,
                   registry=None, log=None) -> RunOutcome:
     """Run (or resume) a benchmark; see the module docstring.  ``tasks``: name -> Task instance;
     ``registry``: the algorithms (default: the tasks' built-ins plus installed plugins)."""
@@ -177,10 +177,10 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
     from pbrbench.quality import get_quality
     from pbrbench.registry import normalize_algorithm_spec
     from pbrbench.report.figures import slug
-    from pbrbench.settings import Settings
+    from pbrbench.scene.load import SceneLibrary
+    from pbrbench.tasks.base import Task
 
     log = log or _log
-    settings = settings or Settings.from_env()
     t_start = time.perf_counter()
     lifecycle.preflight(settings)  # an unwritable --out: one line, and no junk run in the store
     store = Store(settings.store_path())
@@ -199,17 +199,20 @@ def run_benchmark(cfg: RunConfig, *, settings=None, tasks: dict | None = None, s
         prior_done = store.done_jobs(run_id)
         prior_plugins = rc.get("plugin_versions")
     quality = get_quality(cfg.quality)
+    library = SceneLibrary.from_settings(settings)
     if tasks is None:
         tasks = load_tasks(cfg.tasks)
     if not tasks:
         raise UserError("no task to run; pass --tasks NAME (see `pbrbench run --help`)")
+    # every task reads the settings' scene library (a task already bound, or a wrapper, keeps its own)
+    tasks = {n: t.bind(library) if isinstance(t, Task) and t.library is None else t for n, t in tasks.items()}
     if registry is None:   # the built-ins, the installed plugins and the --algorithm specs
         cfg.algorithms = [normalize_algorithm_spec(a) for a in cfg.algorithms]
         registry = plugin_registry(tasks, cfg.algorithms, entry_points=cfg.entry_points,
                                    time_limit=cfg.algorithm_time_limit, log=log,
                                    load_limit=settings.plugin_load_limit)
     source = source or GroundTruthSource(quality, cache=_cache(settings), variant=settings.variant,
-                                         scenes=settings.scenes, render_seed=cfg.render_seed)
+                                         library=library, render_seed=cfg.render_seed)
     plugins = plugin_versions(registry, tasks)
     if prior_plugins is not None:
         check_plugins_unchanged(run_id, prior_plugins, plugins)
@@ -347,16 +350,14 @@ def _cache(settings):
     return RenderCache(settings.cache)
 
 
-def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings=None, tasks: dict | None = None, source=None,
+def update_baselines(cfg: RunConfig, first: RunOutcome, *, settings, tasks: dict | None = None, source=None,
                      executor=None, registry=None, log=None) -> Path:
     """Run :data:`regress.N_SEEDS` - 1 more runs, each with its own render seed (every scene's
     ``render.seed`` offset) and job seed, and rewrite the baseline file from all of them."""
     from pbrbench.bench import regress
     from pbrbench.quality import get_quality
-    from pbrbench.settings import Settings
 
     log = log or _log
-    settings = settings or Settings.from_env()
     quality = get_quality(cfg.quality)
     path = settings.baseline_path(quality)
     if path is None:

@@ -25,14 +25,14 @@ class GroundTruthSource:
 
     memory_size = 4     # ground truths kept in memory (consecutive jobs share a scene)
 
-    def __init__(self, quality, cache=None, variant: str | None = None, *, scenes=None, render_seed: int = 0):
+    def __init__(self, quality, cache, variant: str | None = None, *, library=None, render_seed: int = 0):
         from pbrbench.quality import require
-        from pbrbench.render.cache import RenderCache
+        from pbrbench.scene.load import SceneLibrary
 
         self.quality = require(quality)
-        self.cache = cache if cache is not None else RenderCache()
+        self.cache = cache
         self.variant = variant
-        self.scenes = scenes          # scene library directory (None: the setting)
+        self.library = library if library is not None else SceneLibrary()   # where the scenes are found
         self.render_seed = int(render_seed)  # added to every scene's render.seed (independent renders)
         self._memory: OrderedDict = OrderedDict()
 
@@ -57,15 +57,13 @@ class GroundTruthSource:
 
     def specs(self, names: list[str]) -> dict:
         """Scene name -> SceneSpec for every name (library names, sweep members, families of one)."""
-        from pbrbench.scene.load import load_library, resolve
-
-        lib = load_library(self.scenes)
+        lib = self.library.all()
         out = {}
         for n in names:
             if n in lib:
                 out[n] = lib[n]
                 continue
-            got = resolve([n], self.scenes)
+            got = self.library.resolve([n])
             if len(got) != 1:
                 raise UserError(f"scene {n!r} names a family of {len(got)} scenes; a job needs one scene")
             out[n] = got[0]

@@ -30,7 +30,7 @@ SQLite's transaction keeps the file as it was.  A file that is not a SQLite data
 with a one-line error.
 
 Liveness: a run records its process (host, pid, the process's start time) and a heartbeat
-(:mod:`pbrbench.bench.lifecycle`); a ``running`` run whose process is gone reads as
+(:mod:`pbrbench.bench.liveness`); a ``running`` run whose process is gone reads as
 ``interrupted`` (:meth:`Store.runs`, :meth:`Store.get_run`), and can be resumed.
 """
 
@@ -190,7 +190,7 @@ def environment() -> dict:
 def _with_liveness(run: dict) -> dict:
     """``status`` as it is (a ``running`` run whose process is gone reads ``interrupted``);
     ``stored_status`` keeps what the database says."""
-    from pbrbench.bench.lifecycle import effective_status
+    from pbrbench.bench.liveness import effective_status
 
     run["stored_status"] = run.get("status")
     run["status"] = effective_status(run)

@@ -76,14 +76,16 @@ def _export(args, name: str, d: Path) -> int:
     from pbrbench.cli.run import summary_lines
     from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
+    from pbrbench.scene.load import SceneLibrary
     from pbrbench.tasks import get_tasks
 
     st = settings(args)
     m = read_manifest(d)
     if args.quality and args.quality != m["quality"]:
         raise UserError(f"--quality {args.quality}: {d} was exported at {m['quality']}; drop --quality or export again")
-    task = get_tasks([name])[name]
-    source = GroundTruthSource(get_quality(m["quality"]), cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
+    task = get_tasks([name], library=SceneLibrary.from_settings(st))[name]
+    source = GroundTruthSource(get_quality(m["quality"]), cache=RenderCache(st.cache), variant=st.variant,
+                               library=SceneLibrary.from_settings(st))
     o, reader = evaluate_export(task, d, predictions_dir=args.predictions, name=args.name, version=args.version,
                                 with_builtins=args.with_builtins, settings=st, source=source,
                                 report=not args.no_report, log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr))

@@ -36,6 +36,7 @@ def run(args) -> int:
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache
+    from pbrbench.scene.load import SceneLibrary
     from pbrbench.tasks import get_tasks
 
     st = settings(args)
@@ -44,9 +45,10 @@ def run(args) -> int:
     name = args.task.replace("-", "_")
     if name not in task_names():
         raise UserError(f"TASK {args.task!r}: unknown task; choose from {', '.join(task_names())}")
-    task = get_tasks([name])[name]
+    task = get_tasks([name], library=SceneLibrary.from_settings(st))[name]
     quality = get_quality(args.quality)
-    source = GroundTruthSource(quality, cache=RenderCache(st.cache), variant=st.variant, scenes=st.scenes)
+    source = GroundTruthSource(quality, cache=RenderCache(st.cache), variant=st.variant,
+                               library=SceneLibrary.from_settings(st))
     m = export_task(task, args.out, quality=quality, seed=args.seed, source=source,
                     log=lambda msg: print(f"pbrbench: {msg}", file=sys.stderr), replicates=not args.no_replicates)
     need = ", ".join(f"{p['name']}{'' if p['required'] else ' (optional)'}" for p in m["predictions"])

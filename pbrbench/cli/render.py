@@ -81,16 +81,16 @@ def run(args) -> int:
     from pbrbench.progress import Progress
     from pbrbench.quality import get_quality
     from pbrbench.render.cache import RenderCache, ground_truth
-    from pbrbench.scene.load import load_library, resolve
+    from pbrbench.scene.load import SceneLibrary
 
     if args.all and args.scenes:
         raise UserError("render: give SCENE names or --all, not both")
     if args.all:
-        specs = list(load_library(st.scenes).values())
+        specs = list(SceneLibrary.from_settings(st).all().values())
         if not specs:
             raise UserError(f"render --all: the scene library {st.scenes} has no scene files")
     elif args.scenes:
-        specs = resolve(args.scenes, st.scenes)
+        specs = SceneLibrary.from_settings(st).resolve(args.scenes)
     else:
         raise UserError("render: name at least one SCENE (see `pbrbench scenes`) or pass --all")
     if args.out and Path(args.out).exists() and not Path(args.out).is_dir():

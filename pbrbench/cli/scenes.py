@@ -14,15 +14,16 @@ def run(args) -> int:
     :func:`pbrbench.errors.printable` (no terminal control sequences, no line breaks)."""
     from pbrbench.cli.common import settings
     from pbrbench.errors import UserError, printable
-    from pbrbench.scene.load import library_files, load_scene_file
+    from pbrbench.scene.load import SceneLibrary
 
     st = settings(args)
-    files = library_files(st.scenes)
+    lib = SceneLibrary.from_settings(st)
+    files = lib.files()
     if not files:
         raise UserError(f"scene library {st.scenes}: no .toml scene files there; set PBRBENCH_SCENES to a directory "
                         "of scene files")
     for f in files:
-        specs = load_scene_file(f)
+        specs = lib.load_file(f)
         if args.expand:
             for s in specs:
                 print(f"{printable(s.name):44s} {printable(s.description)}")

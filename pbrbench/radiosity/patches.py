@@ -238,7 +238,7 @@ def _albedo_of(spec, i: int, shape, uv, n: int):
     if getattr(alb, "type", None) == "mondrian" and uv is not None:
         from pbrbench.scene.textures import texture_array
 
-        tex = texture_array(alb, spec.base_dir).astype(float)
+        tex = texture_array(alb, spec.data_root).astype(float)
         R, C = tex.shape[:2]
         rows = np.clip(((1.0 - uv[:, 1]) * R).astype(int), 0, R - 1)
         cols = np.clip((uv[:, 0] * C).astype(int), 0, C - 1)
@@ -342,7 +342,7 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
 
             cells = heightfield_cells or _cells(2 * shape.half_width, patch_size)
             coarse = shape.model_copy(update={"resolution": cells + 1})
-            vtx, _, uvs, tri = heightfield_mesh(coarse, spec.base_dir)
+            vtx, _, uvs, tri = heightfield_mesh(coarse, spec.data_root)
             n = cells + 1
             second = (tri[:, 1] - tri[:, 0]) == n - 1
             row = tri[:, 0] // n

@@ -32,13 +32,6 @@ from pbrbench.render.variant import choose_variant, current_choice
 from pbrbench.scene.spec import SceneSpec
 
 
-def default_root() -> Path:
-    """The ``cache`` setting (:class:`pbrbench.settings.Settings`)."""
-    from pbrbench.settings import Settings
-
-    return Path(Settings.from_env().cache)
-
-
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -60,8 +53,9 @@ def cache_key(spec: SceneSpec, quality: Quality, variant: str) -> str:
 class RenderCache:
     """Ground truths on disk, keyed by content."""
 
-    def __init__(self, root: str | os.PathLike | None = None):
-        self.root = Path(root) if root is not None else default_root()
+    def __init__(self, root: str | os.PathLike):
+        """``root``: the cache directory (the ``cache`` setting, :class:`pbrbench.settings.Settings`)."""
+        self.root = Path(root)
 
     def entry_dir(self, key: str) -> Path:
         return self.root / "gt" / key[:2] / key
@@ -191,13 +185,12 @@ def check_ground_truth(spec: SceneSpec, gt: GroundTruth) -> None:
                     "source; check the lights' positions and directions and the albedos); not cached")
 
 
-def ground_truth(spec: SceneSpec, quality: Quality, *, cache: RenderCache | None = None,
+def ground_truth(spec: SceneSpec, quality: Quality, *, cache: RenderCache,
                  variant: str | None = None, force: bool = False, progress=None) -> tuple[GroundTruth, bool]:
     """The ground truth of ``spec`` from the cache, rendering it if missing.
 
     Returns ``(ground_truth, from_cache)``.
     """
-    cache = cache if cache is not None else RenderCache()
     choice = current_choice() or choose_variant(variant)
     var = variant or choice.variant
     key = cache_key(spec, quality, var)

@@ -176,13 +176,17 @@ def configure(settings) -> None:
     _PREFERRED["settings"] = settings
 
 
-def _settings():
-    s = _PREFERRED.get("settings")
-    if s is None:
-        from pbrbench.settings import Settings
+class _Defaults:
+    """The settings' defaults, when no process has configured this module (the API without
+    :func:`configure`: no preferred variant, the system library directories, CUDA when it works)."""
 
-        s = Settings.from_env()
-    return s
+    variant = None
+    llvm_search = None
+    no_cuda = False
+
+
+def _settings():
+    return _PREFERRED.get("settings") or _Defaults
 
 
 def find_llvm(search_dirs=None) -> tuple[str | None, list[tuple[str, int | None]]]:
@@ -360,7 +364,7 @@ def _route_logs(mi):
     stdout, which carries only the results that scripts parse; its progress bars are dropped.
     Returns the appender (kept alive in ``_STATE``), or None where the logger cannot be reached."""
     try:
-        logger = mi.Thread.thread().logger()
+        logger = mi.logger() if hasattr(mi, "logger") else mi.Thread.thread().logger()
     except Exception:  # noqa: BLE001 - a build without the logger API: leave Mitsuba's default
         return None
     if logger is None:

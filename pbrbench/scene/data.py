@@ -38,13 +38,24 @@ def _fmt_bytes(n: float) -> str:
     return f"{n:.2f} PiB"  # pragma: no cover
 
 
+class DataDir(str):
+    """A scene file's directory (a ``str``: paths join as usual) that also carries ``extra``, the
+    other directories its data files may lie in (the ``data_dirs`` setting the scene was loaded
+    with: :attr:`pbrbench.scene.spec.SceneSpec.data_root`)."""
+
+    extra: tuple[str, ...]
+
+    def __new__(cls, base: str | os.PathLike, extra=()):
+        s = super().__new__(cls, os.fspath(base))
+        s.extra = tuple(str(x) for x in extra or ())
+        return s
+
+
 def data_roots(base_dir: str | os.PathLike, extra: tuple | list | None = None) -> list[Path]:
     """The directories a scene's data files may lie in: its own, and those of ``extra`` (else the
-    ``data_dirs`` setting)."""
+    ones ``base_dir`` carries, when it is a :class:`DataDir`; else none)."""
     if extra is None:
-        from pbrbench.settings import Settings
-
-        extra = Settings.from_env().data_dirs or ()
+        extra = getattr(base_dir, "extra", ())
     roots = [Path(base_dir or ".").resolve()]
     roots += [Path(d).resolve() for d in extra if str(d)]
     return roots

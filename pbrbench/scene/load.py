@@ -19,6 +19,7 @@ import os
 import re
 import tomllib
 import typing
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
@@ -34,25 +35,18 @@ LIMITS = {
     "samples_per_scene": 2e10,      # width x height x spp x passes, at the file's own settings
     "samples_per_file": 1e11,       # the same summed over a sweep
 }
-_OVERRIDE = "set PBRBENCH_ALLOW_LARGE=1 to render it anyway"
+_OVERRIDE = "set PBRBENCH_ALLOW_LARGE=1 to render it anyway (SceneLibrary(allow_large=True) from Python)"
 MAX_SCENE_FILE_BYTES = 16 * 2**20
 
 
-def _allow_large() -> bool:
-    from pbrbench.settings import Settings
-
-    return Settings.from_env().allow_large
-
-
 def scenes_dir(directory: str | os.PathLike | None = None) -> Path:
-    """Directory of the scene library: ``directory``, else the ``scenes`` setting
-    (:class:`pbrbench.settings.Settings`: ``PBRBENCH_SCENES`` or the library shipped in the
-    package, ``scenes/``)."""
+    """Directory of a scene library: ``directory``, else the library shipped with the package
+    (:data:`pbrbench.settings.LIBRARY_DIR`)."""
     if directory is not None:
         return Path(directory)
-    from pbrbench.settings import Settings
+    from pbrbench.settings import LIBRARY_DIR
 
-    return Path(Settings.from_env().scenes)
+    return Path(LIBRARY_DIR)
 
 
 # ------------------------------------------------------------------- error formatting
@@ -235,7 +229,7 @@ def _fmt_value(v) -> str:
     return _UNSAFE.sub("_", str(v))  # a label is part of a file name
 
 
-def expand_sweep(doc: dict, path: str) -> list[dict]:
+def expand_sweep(doc: dict, path: str, *, allow_large: bool = False) -> list[dict]:
     """Expand a ``[sweep]`` table into the Cartesian product of documents."""
     sweep = doc.get("sweep") or {}
     if not isinstance(sweep, dict):
@@ -259,7 +253,7 @@ def expand_sweep(doc: dict, path: str) -> list[dict]:
                                  "(the scenes would repeat)")
             seen.add(r)
         n *= len(sweep[k])
-    if n > LIMITS["scenes_per_file"] and not _allow_large():
+    if n > LIMITS["scenes_per_file"] and not allow_large:
         sizes = " x ".join(str(len(sweep[k])) for k in keys)
         raise SceneError(f"{path}: sweep: expands into {n} scenes ({sizes} values), more than the limit of "
                          f"{LIMITS['scenes_per_file']} per file; sweep fewer values, or {_OVERRIDE}")
@@ -307,21 +301,23 @@ def parse_file(path: str | Path) -> dict:
         raise SceneError(f"{path}: nested too deeply to be a scene file") from None
 
 
-def validate_doc(doc: dict, path: str, base_dir: str, *, member: str | None = None) -> S.SceneSpec:
+def validate_doc(doc: dict, path: str, base_dir: str, *, member: str | None = None,
+                 data_dirs: tuple[str, ...] = ()) -> S.SceneSpec:
     """One document (a file, or one scene of its sweep: ``member``) -> SceneSpec, with its data
-    files read and checked."""
+    files read and checked (in ``base_dir`` or one of ``data_dirs``, which the spec keeps)."""
     where = f"{path} (scene {member!r} of the sweep)" if member else str(path)
     name = doc.get("name", "")
     if not isinstance(name, str):
         raise SceneError(f"{where}: name: must be a string, got {_short_repr(name)}")
     try:
-        spec = S.SceneSpec.model_validate({**doc, "base_dir": base_dir, "source": str(path)})
+        spec = S.SceneSpec.model_validate({**doc, "base_dir": base_dir, "source": str(path),
+                                           "data_dirs": tuple(str(d) for d in data_dirs)})
     except ValidationError as exc:
         raise SceneError(format_validation_error(where, exc)) from None
     from pbrbench.scene.data import MAX_HEIGHT, check_data_file
 
     for key, rel, kind in spec.referenced_data():
-        peak = check_data_file(base_dir, rel, kind, where=f"{where}: {key}")
+        peak = check_data_file(spec.data_root, rel, kind, where=f"{where}: {key}")
         if kind == "height":
             i = int(key.split("[")[1].split("]")[0])
             zs = abs(spec.shapes[i].z_scale)
@@ -331,17 +327,17 @@ def validate_doc(doc: dict, path: str, base_dir: str, *, member: str | None = No
     return spec
 
 
-def _check_lights(doc: dict, path: str) -> None:
+def _check_lights(doc: dict, path: str, allow_large: bool) -> None:
     n = sum(len(doc[k]) for k in ("lights", "light_set") if isinstance(doc.get(k), list))
-    if n > LIMITS["lights_per_scene"] and not _allow_large():
+    if n > LIMITS["lights_per_scene"] and not allow_large:
         parts = ", ".join(f"{len(doc[k])} in {k}" for k in ("lights", "light_set") if isinstance(doc.get(k), list) and doc[k])
         raise SceneError(f"{path}: lights/light_set: {n} lights ({parts}), more than the limit of "
                          f"{LIMITS['lights_per_scene']} per scene; use fewer lights, or {_OVERRIDE}")
 
 
-def _check_work(specs: list[S.SceneSpec], path: str) -> None:
+def _check_work(specs: list[S.SceneSpec], path: str, allow_large: bool) -> None:
     """Refuse renders far beyond the library's (samples = width x height x spp x passes)."""
-    if _allow_large():
+    if allow_large:
         return
     total = 0.0
     for s in specs:
@@ -360,21 +356,23 @@ def _check_work(specs: list[S.SceneSpec], path: str) -> None:
                          f"render.resolution / render.spp, or {_OVERRIDE}")
 
 
-def load_scene_file(path: str | Path) -> list[S.SceneSpec]:
-    """Load one scene file; a file with a ``[sweep]`` returns several specs."""
+def load_scene_file(path: str | Path, *, data_dirs: tuple[str, ...] = (), allow_large: bool = False) -> list[S.SceneSpec]:
+    """Load one scene file; a file with a ``[sweep]`` returns several specs.  ``data_dirs``: other
+    directories its data files may lie in; ``allow_large``: accept renders beyond :data:`LIMITS`."""
     doc = parse_file(path)
-    _check_lights(doc, str(path))
+    _check_lights(doc, str(path), allow_large)
     if "sweep" in doc:
-        docs = expand_sweep(doc, str(path))
+        docs = expand_sweep(doc, str(path), allow_large=allow_large)
         sweep = doc["sweep"]
         base = str(Path(path).parent)
-        specs = [validate_doc({**d, "sweep": {}}, str(path), base, member=d["name"] if len(docs) > 1 else None)
+        specs = [validate_doc({**d, "sweep": {}}, str(path), base, member=d["name"] if len(docs) > 1 else None,
+                              data_dirs=data_dirs)
                  for d in docs]
-        _check_work(specs, str(path))
+        _check_work(specs, str(path), allow_large)
         # keep the sweep table on the specs for the record (it does not enter the hash)
         return [s.model_copy(update={"sweep": sweep}) for s in specs]
-    specs = [validate_doc(doc, str(path), str(Path(path).parent))]
-    _check_work(specs, str(path))
+    specs = [validate_doc(doc, str(path), str(Path(path).parent), data_dirs=data_dirs)]
+    _check_work(specs, str(path), allow_large)
     return specs
 
 
@@ -382,30 +380,33 @@ def library_files(directory: str | os.PathLike | None = None) -> list[Path]:
     return sorted(scenes_dir(directory).glob("*.toml"))
 
 
-def load_library(directory: str | os.PathLike | None = None) -> dict[str, S.SceneSpec]:
+def load_library(directory: str | os.PathLike | None = None, *, data_dirs: tuple[str, ...] = (),
+                 allow_large: bool = False) -> dict[str, S.SceneSpec]:
     """Every scene of the library by name (sweeps expanded)."""
     out: dict[str, S.SceneSpec] = {}
     for f in library_files(directory):
-        for s in load_scene_file(f):
+        for s in load_scene_file(f, data_dirs=data_dirs, allow_large=allow_large):
             if s.name in out:
                 raise SceneError(f"{f}: name: {s.name!r} is also used by {out[s.name].source}; scene names must be unique")
             out[s.name] = s
     return out
 
 
-def resolve(names_or_paths: list[str], directory: str | os.PathLike | None = None) -> list[S.SceneSpec]:
+def resolve(names_or_paths: list[str], directory: str | os.PathLike | None = None, *,
+            data_dirs: tuple[str, ...] = (), allow_large: bool = False) -> list[S.SceneSpec]:
     """Scene names, family names (a file stem, expanding its sweep) or paths -> specs."""
     out: list[S.SceneSpec] = []
     lib = None
+    kw = {"data_dirs": data_dirs, "allow_large": allow_large}
     for item in names_or_paths:
         if item.endswith(".toml") or os.sep in item:
-            out += load_scene_file(item)
+            out += load_scene_file(item, **kw)
             continue
         stem_file = scenes_dir(directory) / f"{item}.toml"
         if stem_file.is_file():
-            out += load_scene_file(stem_file)
+            out += load_scene_file(stem_file, **kw)
             continue
-        lib = lib if lib is not None else load_library(directory)
+        lib = lib if lib is not None else load_library(directory, **kw)
         if item in lib:
             out.append(lib[item])
             continue
@@ -413,3 +414,57 @@ def resolve(names_or_paths: list[str], directory: str | os.PathLike | None = Non
         hint = f" (did you mean {close[0]!r}?)" if close else "; run `pbrbench scenes` for the list"
         raise SceneError(f"{item}: no scene of that name{hint}")
     return out
+
+
+@dataclass(frozen=True)
+class SceneLibrary:
+    """A scene library: a directory of scene files and how its scenes are loaded (the extra
+    directories their data files may lie in, and whether renders beyond :data:`LIMITS` are
+    accepted).  The command line builds one from the settings (:meth:`from_settings`) and hands it
+    to the tasks; the default is the library shipped with the package, with the limits on."""
+
+    root: Path = field(default_factory=lambda: scenes_dir())
+    data_dirs: tuple[str, ...] = ()
+    allow_large: bool = False
+
+    @classmethod
+    def from_settings(cls, settings) -> SceneLibrary:
+        """The ``scenes``, ``data_dirs`` and ``allow_large`` settings (:class:`pbrbench.settings.Settings`)."""
+        return cls(Path(settings.scenes), tuple(settings.data_dirs or ()), bool(settings.allow_large))
+
+    def load_file(self, path: str | os.PathLike) -> list[S.SceneSpec]:
+        """:func:`load_scene_file` with this library's data directories and limits."""
+        return load_scene_file(path, data_dirs=self.data_dirs, allow_large=self.allow_large)
+
+    def files(self) -> list[Path]:
+        return library_files(self.root)
+
+    def family(self, family: str) -> list[S.SceneSpec]:
+        """The specs of a family (a file stem; its sweep expanded), [] when the library has no such
+        file (a task lists every family it knows; those a library lacks contribute no jobs)."""
+        path = Path(self.root) / f"{family}.toml"
+        return self.load_file(path) if path.is_file() else []
+
+    def spec(self, name: str) -> S.SceneSpec:
+        """The spec of one scene by name (``family[key=value]``), loaded once per library."""
+        key = (self, name)
+        if key not in _SPECS:
+            fam = name.split("[")[0]
+            found = {s.name: s for s in self.family(fam)}
+            if name not in found:
+                raise ValueError(f"scene {name!r}: not in the library family {fam!r} ({self.root})")
+            if len(_SPECS) > 4096:
+                _SPECS.clear()
+            _SPECS.update({(self, n): s for n, s in found.items()})
+        return _SPECS[key]
+
+    def all(self) -> dict[str, S.SceneSpec]:
+        """Every scene by name (:func:`load_library`)."""
+        return load_library(self.root, data_dirs=self.data_dirs, allow_large=self.allow_large)
+
+    def resolve(self, names_or_paths: list[str]) -> list[S.SceneSpec]:
+        """:func:`resolve` in this library."""
+        return resolve(names_or_paths, self.root, data_dirs=self.data_dirs, allow_large=self.allow_large)
+
+
+_SPECS: dict = {}    # (library, scene name) -> spec, for SceneLibrary.spec

@@ -137,7 +137,7 @@ def heightfield_mesh(shape: S.Heightfield, base_dir: str):
 def shape_dict(mi, spec: S.SceneSpec, i: int, shape, *, diffuse_only: bool = False) -> dict:
     T = mi.ScalarTransform4f
     mat = spec.material_of(shape)
-    d: dict = {"bsdf": bsdf_dict(mi, mat, spec.base_dir, diffuse_only=diffuse_only)}
+    d: dict = {"bsdf": bsdf_dict(mi, mat, spec.data_root, diffuse_only=diffuse_only)}
     if shape.flip_normals:
         d["flip_normals"] = True
     rot = _rotations(mi, shape.rotate)
@@ -155,7 +155,7 @@ def shape_dict(mi, spec: S.SceneSpec, i: int, shape, *, diffuse_only: bool = Fal
         key = hashlib.sha256(shape.model_dump_json().encode() + spec.content_hash().encode()).hexdigest()[:24]
         path = os.path.join(_scratch_dir(), f"hf_{key}.ply")
         if not os.path.exists(path):  # built once per process, reused by every pass
-            mesh = heightfield_mesh(shape, spec.base_dir)
+            mesh = heightfield_mesh(shape, spec.data_root)
             try:
                 write_ply(path + ".tmp", *mesh)
                 os.replace(path + ".tmp", path)

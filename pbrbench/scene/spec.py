@@ -588,6 +588,7 @@ class SceneSpec(Model):
     sweep: dict[str, list] = Field(default_factory=dict)
     base_dir: str = Field("", exclude=True, description="directory of the scene file (for relative paths)")
     source: str = Field("", exclude=True)
+    data_dirs: tuple[str, ...] = Field((), exclude=True, description="other directories its data files may lie in")
 
     @field_validator("name")
     @classmethod
@@ -636,6 +637,14 @@ class SceneSpec(Model):
         return any(s.occluder for s in self.shapes)
 
     @property
+    def data_root(self):
+        """Where the data files of this scene may lie: its file's directory, with the extra
+        ``data_dirs`` it was loaded with (:class:`pbrbench.scene.data.DataDir`)."""
+        from pbrbench.scene.data import DataDir
+
+        return DataDir(self.base_dir, self.data_dirs)
+
+    @property
     def n_passes(self) -> int:
         """The rendered passes of this scene's ground truth (progress steps and the work limit):
         radiance, direct, two per light of the light set, the unoccluded and diffuse-only passes
@@ -647,7 +656,7 @@ class SceneSpec(Model):
 
     def canonical(self) -> dict:
         """JSON-ready dict of everything that affects the render (no paths, no sweep)."""
-        d = self.model_dump(mode="json", exclude={"base_dir", "source", "sweep", "description", "reference", "tags"})
+        d = self.model_dump(mode="json", exclude={"base_dir", "source", "data_dirs", "sweep", "description", "reference", "tags"})
         return d
 
     def content_hash(self) -> str:

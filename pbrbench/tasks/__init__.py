@@ -21,13 +21,15 @@ def task_names() -> list[str]:
     return sorted(found, key=lambda n: (order.index(n) if n in order else len(order), n))
 
 
-def get_tasks(names=None) -> dict:
-    """Task instances by name (all when ``names`` is empty)."""
+def get_tasks(names=None, *, library=None) -> dict:
+    """Task instances by name (all when ``names`` is empty), bound to the scene library ``library``
+    when it is given (:meth:`pbrbench.tasks.base.Task.bind`; else the library shipped)."""
     known = task_names()
     names = list(names) if names else known
     out = {}
     for n in names:
         if n not in known:
             raise UserError(f"--tasks: unknown task {n!r}; choose from {', '.join(known)}")
-        out[n] = importlib.import_module(f"pbrbench.tasks.{n}").TASK
+        task = importlib.import_module(f"pbrbench.tasks.{n}").TASK
+        out[n] = task.bind(library) if library is not None else task
     return out

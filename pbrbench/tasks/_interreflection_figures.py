@@ -83,8 +83,6 @@ def _series(x, y, color, **style) -> dict:
 # ------------------------------------------------------------------------------ the figures
 def _groove(task, job, gts, quality) -> JobResult:
     from pbrbench.quality import subsample
-    from pbrbench.tasks.common.scenes import scene_spec
-
     res = JobResult(job)
     names = sorted([job.scene, *job.extra_scenes], key=lambda n: sweep_value(n, "albedo") or 0.0)
     fam = job.scene.split("[")[0]
@@ -93,7 +91,7 @@ def _groove(task, job, gts, quality) -> JobResult:
     cells = _cells(task, quality)
     series, local = {}, None
     for k, name in enumerate(shown):
-        gt, spec = gts[name], scene_spec(name)
+        gt, spec = gts[name], task.scenes.spec(name)
         rho = float(sweep_value(name, "albedo") or np.mean(grey(gt["albedo"])[_vis(gt)]))
         H, W = gt['radiance'].shape[:2]
         x = _x(spec, W, H)
@@ -132,8 +130,6 @@ def _gain_plot() -> dict:
 
 
 def _rooms(task, job, gts, quality) -> JobResult:
-    from pbrbench.tasks.common.scenes import scene_spec
-
     res = JobResult(job)
     names = sorted([job.scene, *job.extra_scenes], key=lambda n: "white" in n)  # black first
     cells = _cells(task, quality)
@@ -141,7 +137,7 @@ def _rooms(task, job, gts, quality) -> JobResult:
     white = gts[names[-1]]
     expo = 0.9 * _exposure(white["radiance"], _vis(white))   # the white room's render just below white
     for k, name in enumerate(names):
-        gt, spec = gts[name], scene_spec(name)
+        gt, spec = gts[name], task.scenes.spec(name)
         H, W = gt['radiance'].shape[:2]
         row = int(ROOM_ROW * H)
         band = np.zeros((H, W), bool)
@@ -167,10 +163,8 @@ def _rooms(task, job, gts, quality) -> JobResult:
 
 
 def _bump(task, job, gts, quality) -> JobResult:
-    from pbrbench.tasks.common.scenes import scene_spec
-
     res = JobResult(job)
-    gt, spec = gts[job.scene], scene_spec(job.scene)
+    gt, spec = gts[job.scene], task.scenes.spec(job.scene)
     H, W = gt['radiance'].shape[:2]
     band = np.zeros((H, W), bool)
     band[H // 2 - max(1, H // 16):H // 2 + max(1, H // 16)] = True
@@ -199,10 +193,8 @@ def _bump(task, job, gts, quality) -> JobResult:
 
 def _bleeding(task, job, gts, quality) -> JobResult:
     from pbrbench.radiosity.patches import rotation_matrix
-    from pbrbench.tasks.common.scenes import scene_spec
-
     res = JobResult(job)
-    gt, spec = gts[job.scene], scene_spec(job.scene)
+    gt, spec = gts[job.scene], task.scenes.spec(job.scene)
     H, W = gt['radiance'].shape[:2]
     alb = {i: np.asarray(spec.material_of(s).albedo, float) for i, s in enumerate(spec.shapes)}
     coloured = [i for i, a in alb.items() if np.ptp(a) > 0.2 and spec.shapes[i].type == "rectangle"]
@@ -243,14 +235,12 @@ def _bleeding(task, job, gts, quality) -> JobResult:
 
 def _shadows(task, job, gts, quality) -> JobResult:
     from pbrbench.shading.irradiance import rectangle_polygon, visible_polygon_irradiance
-    from pbrbench.tasks.common.scenes import scene_spec
-
     res = JobResult(job)
     frac, rad = {}, {}
     labels = {"shadow_near": "occluder near the floor", "shadow_far": "occluder near the source",
               "shadow_small": "small occluder, large source"}
     for k, name in enumerate([job.scene, *job.extra_scenes]):
-        gt, spec = gts[name], scene_spec(name)
+        gt, spec = gts[name], task.scenes.spec(name)
         H, W = gt['radiance'].shape[:2]
         lights = [lt for lt in spec.lights if lt.type == "area"]
         occ = [s for s in spec.shapes if s.occluder and s.type == "rectangle"]

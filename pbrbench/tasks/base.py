@@ -129,6 +129,25 @@ class Task:
     reference_condition: str = "local"   # the headline's first column; effects are costs against it
     notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
     cost_notes: dict = {}                # algorithm -> why it takes the time it takes (shown in the report)
+    library = None                       # the SceneLibrary it reads (bind()); None: the one shipped
+
+    def bind(self, library) -> Task:
+        """This task reading the scene library ``library`` (a
+        :class:`pbrbench.scene.load.SceneLibrary`): a copy, the task module's instance unchanged."""
+        import copy
+
+        t = copy.copy(self)
+        t.library = library
+        return t
+
+    @property
+    def scenes(self):
+        """The :class:`pbrbench.scene.load.SceneLibrary` the task lists its jobs from."""
+        if self.library is None:
+            from pbrbench.scene.load import SceneLibrary
+
+            return SceneLibrary()
+        return self.library
 
     def seed_dependent(self, job: Job) -> bool:
         """Whether the job's inputs depend on the seed (then its standard error includes a second

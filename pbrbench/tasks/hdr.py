@@ -41,7 +41,6 @@ from pbrbench.registry import Algorithm
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, profile_plot
 from pbrbench.tasks.common.inputs import grey, job_rng
-from pbrbench.tasks.common.scenes import family_scenes
 from pbrbench.tasks.common.scoring import (
     ScoreBook,
     Timer,
@@ -176,7 +175,7 @@ class HDRTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, ()):
-            for s in family_scenes(fam):
+            for s in self.scenes.family(fam):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 

@@ -34,7 +34,7 @@ from pbrbench.tasks import _interreflection_figures as FIG
 from pbrbench.tasks.base import Job, JobResult, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map
 from pbrbench.tasks.common.inputs import grey, visible_surface
-from pbrbench.tasks.common.scenes import family_scenes, scene_spec, sweep_value
+from pbrbench.tasks.common.scenes import sweep_value
 from pbrbench.tasks.common.scoring import ScoreBook, call, check_array, scene_hash
 
 GROOVES = ("groove_reflex_parallel", "groove_reflex_bisector")
@@ -94,7 +94,7 @@ class InterreflectionTask(Task):
         kept = {}
         for fam in quality.pick(self.families, self.short_families):
             # a black scene (albedo 0 of a sweep) reflects nothing: no relative error to score
-            specs = quality.keep([s for s in family_scenes(fam) if sweep_value(s, "albedo") != 0.0])
+            specs = quality.keep([s for s in self.scenes.family(fam) if sweep_value(s, "albedo") != 0.0])
             kept[fam] = [s.name for s in specs]
             for s in specs:
                 out += [Job(self.name, s.name, c) for c in self.conditions]
@@ -109,7 +109,7 @@ class InterreflectionTask(Task):
             out.append(Job(self.name, kept["cylinder_bump"][0], "global", (("plot", "bump"),)))
         if kept.get("colour_bleeding"):
             out.append(Job(self.name, kept["colour_bleeding"][0], "global", (("plot", "bleeding"),)))
-        shadows = [s.name for fam in SHADOWS for s in family_scenes(fam)[:1]]
+        shadows = [s.name for fam in SHADOWS for s in self.scenes.family(fam)[:1]]
         if shadows:
             out.append(Job(self.name, shadows[0], "global", (("plot", "shadows"),), extra_scenes=tuple(shadows[1:])))
         return out
@@ -121,7 +121,7 @@ class InterreflectionTask(Task):
             return FIG.plot_job(self, job, gts, plot, quality)
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        spec = scene_spec(job.scene)
+        spec = self.scenes.spec(job.scene)
         base, _ = parse_condition(job.condition)
         H, W = gt["radiance"].shape[:2]
         ref = np.asarray(gt["radiance"] if base == "global" else gt["direct"], np.float64)

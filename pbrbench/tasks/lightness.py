@@ -36,7 +36,6 @@ from pbrbench.registry import Algorithm
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, profile_plot
 from pbrbench.tasks.common.inputs import grey
-from pbrbench.tasks.common.scenes import family_scenes
 from pbrbench.tasks.common.scoring import ScoreBook, attribute, call, check_array, scene_hash
 
 FAMILIES = ("mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded")
@@ -133,8 +132,8 @@ class LightnessTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            twins = family_scenes(f"{fam}_area")
-            for i, s in enumerate(family_scenes(fam)):
+            twins = self.scenes.family(f"{fam}_area")
+            for i, s in enumerate(self.scenes.family(fam)):
                 paper = tuple(i + 1 for i, sh in enumerate(s.shapes) if sh.material == "paper")
                 p = (("paper_ids", paper),)
                 out.append(Job(self.name, s.name, "local", p))

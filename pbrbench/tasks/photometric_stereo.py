@@ -56,7 +56,7 @@ from pbrbench.scene.geometry import light_vectors
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, normals_display, profile_plot
 from pbrbench.tasks.common.inputs import add_noise, as_param, erode, grey, job_rng, pixel_size
-from pbrbench.tasks.common.scenes import family_scenes, sweep_value
+from pbrbench.tasks.common.scenes import sweep_value
 from pbrbench.tasks.common.scoring import ScoreBook, Timer, attribute, call, check_array, scene_hash
 
 FAMILIES = ("sphere_5lights", "sphere_12lights", "sphere_textured", "ps_bumps", "ps_vase", "ps_cup", "ps_groove",
@@ -173,10 +173,10 @@ class PhotometricStereoTask(Task):
     def jobs(self, quality) -> list[Job]:
         out: list[Job] = []
         for fam in quality.pick(self.families, self.short_families):
-            specs = family_scenes(fam)
+            specs = self.scenes.family(fam)
             if not specs:
                 continue
-            twins = {sweep_value(s, "albedo"): s for s in family_scenes(f"{fam}_area")}
+            twins = {sweep_value(s, "albedo"): s for s in self.scenes.family(f"{fam}_area")}
             specs = quality.keep(specs)
             for s in specs:
                 if not s.light_set:
@@ -193,7 +193,7 @@ class PhotometricStereoTask(Task):
                 out.append(Job(self.name, names[-1], "global", (("plot", "albedo_sweep"),) + self._params(specs[-1]),
                                extra_scenes=names[:-1]))
         for fam in quality.pick(self.reflex_families, self.short_reflex_families):
-            specs = quality.keep(family_scenes(fam), extra=1)
+            specs = quality.keep(self.scenes.family(fam), extra=1)
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
@@ -241,8 +241,7 @@ class PhotometricStereoTask(Task):
         return call(alg, images, lights, mask=mask, quality=quality,
                       check=lambda out: result_arrays(out, images.shape[1:3]))
 
-    @staticmethod
-    def _inverse_applies(job: Job, quality) -> bool:
+    def _inverse_applies(self, job: Job, quality) -> bool:
         """Whether the inverse-rendering methods run on this job: the highest albedo of a family
         of :data:`INVERSE_FAMILIES` (or of its area twin) under :data:`INVERSE_CONDITIONS` (the
         short lists at a short-subset quality)."""
@@ -256,17 +255,14 @@ class PhotometricStereoTask(Task):
             return False
         if job.condition not in quality.pick(INVERSE_CONDITIONS, SHORT_INVERSE_CONDITIONS):
             return False
-        albedos = [sweep_value(s, "albedo") for s in family_scenes(fam)]
+        albedos = [sweep_value(s, "albedo") for s in self.scenes.family(fam)]
         albedos = [a for a in albedos if a is not None]
         return not albedos or sweep_value(job.scene, "albedo") == max(albedos)
 
-    @staticmethod
-    def _solve_scene(alg, job: Job, images, lights, mask, quality, seed: int):
+    def _solve_scene(self, alg, job: Job, images, lights, mask, quality, seed: int):
         """Call an ``interface="scene"`` algorithm: ``(((normals, albedo, valid), raw output),
         seconds, error)``."""
-        from pbrbench.tasks.common.scenes import scene_spec
-
-        spec = scene_spec(job.scene)
+        spec = self.scenes.spec(job.scene)
         depth = int(spec.render.max_depth) if parse_condition(job.condition)[0] == "global" else 2
         return call(alg, images, lights, mask=mask, scene=spec, max_depth=depth, seed=seed, quality=quality,
                       check=lambda out: (result_arrays(out, images.shape[1:3]), out))

@@ -44,7 +44,6 @@ from pbrbench.scene.geometry import nominal_light
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, normals_display, profile_plot
 from pbrbench.tasks.common.inputs import add_noise, as_param, grey, job_rng, pixel_size
-from pbrbench.tasks.common.scenes import family_scenes
 from pbrbench.tasks.common.scoring import ScoreBook, Timer, attribute, call, check_array, scene_hash
 
 FAMILIES = ("sfs_sphere", "sfs_vase", "sfs_random")
@@ -136,8 +135,8 @@ class SFSTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            twins = family_scenes(f"{fam}_area")
-            for i, s in enumerate(family_scenes(fam)):
+            twins = self.scenes.family(f"{fam}_area")
+            for i, s in enumerate(self.scenes.family(fam)):
                 tw = twins[i] if i < len(twins) else None
                 tw_cases = dict((k, li) for li, k in self._cases(tw)) if tw is not None else {}
                 for light, k in self._cases(s):

@@ -37,7 +37,6 @@ from pbrbench.registry import Algorithm
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map
 from pbrbench.tasks.common.inputs import add_noise, grey, job_rng
-from pbrbench.tasks.common.scenes import family_scenes
 from pbrbench.tasks.common.scoring import ScoreBook, attribute, call, check_array, scene_hash
 
 FAMILIES = ("specular_sphere", "specular_shapes")
@@ -90,7 +89,7 @@ class SpecularTask(Task):
     def jobs(self, quality) -> list[Job]:
         out = []
         for fam in quality.pick(self.families, self.short_families):
-            for s in family_scenes(fam):
+            for s in self.scenes.family(fam):
                 if s.has_glossy:
                     out += [Job(self.name, s.name, c) for c in self.conditions]
         return out

@@ -15,6 +15,7 @@ from pbrbench.bench.source import GroundTruthSource  # noqa: E402
 from pbrbench.quality import DRAFT  # noqa: E402
 from pbrbench.registry import Algorithm  # noqa: E402
 from pbrbench.render.cache import RenderCache  # noqa: E402
+from pbrbench.settings import Settings  # noqa: E402
 from pbrbench.tasks.base import Job, JobResult, Task  # noqa: E402
 from pbrbench.tasks.common.scoring import ScoreBook  # noqa: E402
 from tests.fakes import FakeSource, FakeTask, settings_for  # noqa: E402
@@ -67,7 +68,7 @@ def _key(s):
 
 @pytest.mark.render
 def test_local_cluster_matches_local_executor(tmp_path):
-    ex = DaskExecutor(scheduler=None, workers=2, variant=None)
+    ex = DaskExecutor(scheduler=None, workers=2, variant=None, settings=Settings.from_env())
     try:
         ex.client.run(_add_path, ROOT)  # the fake task and source live in the tests package
         probes = ex.probe()
@@ -115,7 +116,7 @@ def test_a_task_that_kills_its_workers_is_given_up_and_the_others_are_kept():
 
     # one task per worker thread (Dask marks every task assigned to a dying worker as suspect)
     with dask.config.set({"distributed.scheduler.allowed-failures": 0, "distributed.scheduler.worker-saturation": 1.0}):
-        ex = DaskExecutor(scheduler=None, workers=1, variant="scalar_rgb")
+        ex = DaskExecutor(scheduler=None, workers=1, variant="scalar_rgb", settings=Settings.from_env())
     try:
         got = []
         # operator.call(f, *args): builtins only, so a restarted worker needs no path to the tests

@@ -22,6 +22,7 @@ pytest.importorskip("distributed", reason="Dask distributed is not installed (pi
 
 from pbrbench.bench.executors import DaskExecutor  # noqa: E402
 from pbrbench.bench.run import RunConfig, run_benchmark  # noqa: E402
+from pbrbench.settings import Settings  # noqa: E402
 from tests.fakes import FakeSource, FakeTask, settings_for  # noqa: E402
 
 pytestmark = pytest.mark.slow
@@ -148,7 +149,7 @@ def test_a_worker_killed_mid_run_loses_no_scores(tmp_path):
                         "--no-dashboard", "--death-timeout", "60"], wlog)
             procs.append(w)
             workers.append(w)
-        ex = CountingDaskExecutor(scheduler=addr, workers=None, variant="scalar_rgb")
+        ex = CountingDaskExecutor(scheduler=addr, workers=None, variant="scalar_rgb", settings=Settings.from_env())
         ex.client.wait_for_workers(2, timeout=START_TIMEOUT)
         victim = workers[0]
 

@@ -16,6 +16,7 @@ from datetime import UTC, datetime, timedelta
 import pytest
 
 from pbrbench.bench import lifecycle as L
+from pbrbench.bench import liveness as V
 from pbrbench.bench.store import Store
 from pbrbench.errors import DiskError, UserError
 
@@ -32,21 +33,21 @@ def _iso(dt):
 
 def test_effective_status_of_running_runs():
     now = datetime.now(UTC)
-    me = L.this_process()
+    me = V.this_process()
     host = socket.gethostname()
     live = {"status": "running", **me, "heartbeat": _iso(now)}
-    assert L.effective_status(live) == "running"
-    assert L.effective_status(dict(live, pid=_dead_pid())) == "interrupted"
+    assert V.effective_status(live) == "running"
+    assert V.effective_status(dict(live, pid=_dead_pid())) == "interrupted"
     if me["pid_start"]:  # a reused pid: same number, another process
-        assert L.effective_status(dict(live, pid_start="other-boot:1")) == "interrupted"
+        assert V.effective_status(dict(live, pid_start="other-boot:1")) == "interrupted"
     far = {"status": "running", "host": host + "-elsewhere", "pid": 1, "pid_start": None}
-    assert L.effective_status(dict(far, heartbeat=_iso(now - timedelta(seconds=30)))) == "running"
-    assert L.effective_status(dict(far, heartbeat=_iso(now - timedelta(seconds=L.STALE_S + 60)))) == "interrupted"
+    assert V.effective_status(dict(far, heartbeat=_iso(now - timedelta(seconds=30)))) == "running"
+    assert V.effective_status(dict(far, heartbeat=_iso(now - timedelta(seconds=V.STALE_S + 60)))) == "interrupted"
     old = {"status": "running", "time": _iso(now - timedelta(hours=3))}   # recorded by an older pbrbench
-    assert L.effective_status(old) == "interrupted"
-    assert L.effective_status({"status": "running", "time": _iso(now)}) == "running"
+    assert V.effective_status(old) == "interrupted"
+    assert V.effective_status({"status": "running", "time": _iso(now)}) == "running"
     for st in ("complete", "failed", "interrupted", "complete-with-errors"):
-        assert L.effective_status({"status": st, "pid": _dead_pid(), "host": host}) == st
+        assert V.effective_status({"status": st, "pid": _dead_pid(), "host": host}) == st
 
 
 def test_store_reads_liveness_and_heartbeat_beats(tmp_path):

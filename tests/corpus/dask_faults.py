@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from pbrbench.settings import Settings
 from tests.fakes import FakeSource, FakeTask, settings_for
 
 ROOT = str(Path(__file__).resolve().parents[2])
@@ -223,7 +224,7 @@ def run_case(case: Case, tmp: Path) -> Result:
     error = None
     try:
         with dask.config.set({"distributed.comm.timeouts.connect": CONNECT_TIMEOUT}):
-            ex = DaskExecutor(scheduler=address, workers=None, variant="scalar_rgb")
+            ex = DaskExecutor(scheduler=address, workers=None, variant="scalar_rgb", settings=Settings.from_env())
             try:
                 if cluster is not None:
                     ex.client.wait_for_workers(1, timeout=START_TIMEOUT)
@@ -268,7 +269,7 @@ def resume(result: Result, tmp: Path, *, on_new_scheduler: bool = False):
                              source=source(tmp / "gt"), log=lambda m: None)
     cluster = Cluster(tmp, "new")
     try:
-        ex = DaskExecutor(scheduler=cluster.address, workers=None, variant="scalar_rgb")
+        ex = DaskExecutor(scheduler=cluster.address, workers=None, variant="scalar_rgb", settings=Settings.from_env())
         try:
             ex.client.wait_for_workers(1, timeout=START_TIMEOUT)
             cfg.executor = "dask"

@@ -58,7 +58,7 @@ class SyntheticSource(FakeSource):
     """The ground-truth source the command line builds (``GroundTruthSource(quality, cache=...)``),
     with analytic ground truths instead of renders."""
 
-    def __init__(self, quality=DRAFT, *, cache=None, variant=None, scenes=None, **_):
+    def __init__(self, quality=DRAFT, *, cache=None, variant=None, library=None, **_):
         super().__init__(Path(getattr(cache, "root", None) or tempfile.gettempdir()) / "synthetic", quality)
 
     def load(self, spec):
@@ -70,7 +70,7 @@ class SyntheticSource(FakeSource):
 @contextlib.contextmanager
 def synthetic_world():
     """``pbrbench evaluate`` with the synthetic task and ground truths of this module."""
-    with mock.patch("pbrbench.tasks.get_tasks", lambda names: {n: SmallPS() for n in names}), \
+    with mock.patch("pbrbench.tasks.get_tasks", lambda names, **_: {n: SmallPS() for n in names}), \
             mock.patch("pbrbench.bench.source.GroundTruthSource", SyntheticSource):
         yield
 

@@ -11,6 +11,8 @@ import socket
 
 import pytest
 
+from pbrbench.settings import Settings
+
 pytest.importorskip("distributed", reason="Dask distributed is not installed (pip install 'dask[distributed]')")
 
 from tests.corpus.dask_faults import (  # noqa: E402
@@ -91,7 +93,8 @@ def test_an_address_that_is_not_one_is_a_usage_line():
     from pbrbench.bench.executors import DaskExecutor
     from pbrbench.errors import UserError
 
-    ex = DaskExecutor(scheduler=f"nonsense://127.0.0.1:{free_port()}", workers=None, variant=None)
+    ex = DaskExecutor(scheduler=f"nonsense://127.0.0.1:{free_port()}", workers=None, variant=None,
+                      settings=Settings.from_env())
     with pytest.raises(UserError, match="--scheduler nonsense://"):
         _ = ex.client
     ex.close()

@@ -110,9 +110,20 @@ def test_data_dirs_setting_allows_another_directory(tmp_path, monkeypatch):
     p = _scene(scene_dir, '[[shapes]]\ntype = "heightfield"\nresolution = 8\npath = "../data/h.npy"\n')
     with pytest.raises(SceneError, match="outside"):
         load_scene_file(p)
-    monkeypatch.setenv("PBRBENCH_DATA_DIRS", str(outside))
-    (spec,) = load_scene_file(p)
+    (spec,) = load_scene_file(p, data_dirs=(str(outside),))
     assert spec.referenced_data() == [("shapes[0].path", "../data/h.npy", "height")]
+    # the extra directory travels with the spec: its data files load where they are used (the render)
+    from pbrbench.scene.data import load_data
+
+    assert load_data(spec.data_root, "../data/h.npy", "height", where="h").shape == (8, 8)
+    with pytest.raises(SceneError, match="outside"):
+        load_data(spec.base_dir, "../data/h.npy", "height", where="h")
+    # the settings reach the loader through the library object
+    from pbrbench.scene.load import SceneLibrary
+    from pbrbench.settings import Settings
+
+    lib = SceneLibrary.from_settings(Settings.from_env({"PBRBENCH_DATA_DIRS": str(outside)}, cache=tmp_path / "c"))
+    assert lib.load_file(p)[0].data_dirs == (str(outside),)
 
 
 def test_size_limit_of_a_data_file(tmp_path, monkeypatch):
@@ -131,8 +142,7 @@ def test_allow_large_lifts_the_limits(tmp_path, monkeypatch):
     p = SCENES / "expansion-sweep-1500.toml"
     with pytest.raises(SceneError, match="PBRBENCH_ALLOW_LARGE"):
         load_scene_file(p)
-    monkeypatch.setenv("PBRBENCH_ALLOW_LARGE", "1")
-    assert len(load_scene_file(p)) == 1500
+    assert len(load_scene_file(p, allow_large=True)) == 1500
 
 
 def test_unreadable_scene_file_is_one_line(tmp_path, monkeypatch):

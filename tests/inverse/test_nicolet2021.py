@@ -8,12 +8,12 @@ import pytest
 from pbrbench.inverse import METHODS, inverse_rendering_nicolet2021
 from pbrbench.inverse import nicolet2021 as N
 from pbrbench.scene.geometry import light_vectors
-from pbrbench.tasks.common.scenes import family_scenes
+from pbrbench.scene.load import SceneLibrary
 
 
 @pytest.fixture(scope="module")
 def groove():
-    return {s.name: s for s in family_scenes("ps_groove")}["ps_groove[albedo=0.9]"]
+    return SceneLibrary().spec("ps_groove[albedo=0.9]")
 
 
 def _inputs(spec, n=16):
@@ -59,7 +59,7 @@ def test_nan_in_the_images_is_refused(groove):
 
 
 def test_perspective_camera_is_refused():
-    room = family_scenes("room_white")[0]
+    room = SceneLibrary().family("room_white")[0]
     lights = np.tile([0.0, 0.0, 1.0], (3, 1))
     with pytest.raises(ValueError, match="orthographic"):
         inverse_rendering_nicolet2021(np.ones((3, 16, 16)), lights, mask=np.ones((16, 16), bool), scene=room)

@@ -89,4 +89,4 @@ def test_unknown_check_is_a_user_error():
     from pbrbench.errors import UserError
 
     with pytest.raises(UserError, match="--checks"):
-        V.run_checks(DRAFT, ["nope"])
+        V.run_checks(DRAFT, ["nope"], None)

@@ -14,7 +14,10 @@ from pbrbench.render.variant import MIN_LLVM, find_llvm, llvm_major, llvm_major_
 
 PROBE = r"""
 import json, os, sys
+from pbrbench.render import variant
 from pbrbench.render.variant import choose_variant
+from pbrbench.settings import Settings
+variant.configure(Settings.from_env())      # as the command line does, once
 c = choose_variant()
 out = {"variant": c.variant, "llvm": c.llvm_path, "notice": c.notice, "env": os.environ.get("DRJIT_LIBLLVM_PATH")}
 if len(sys.argv) > 1:  # render a tiny scene with the chosen variant: must not abort

@@ -10,15 +10,15 @@ import pytest
 from pbrbench.radiosity.forward_models import predict_radiance
 from pbrbench.registry import Algorithm, Registry
 from pbrbench.render.groundtruth import GroundTruth
+from pbrbench.scene.load import SceneLibrary
 from pbrbench.tasks.base import Job
-from pbrbench.tasks.common.scenes import scene_spec
 from pbrbench.tasks.interreflection import TASK
 from tests.fakes import run_task, scores_of
 
 
 def fine_gt(name, res=(32, 24), cells=10):
     """Ground truth from the model itself at a finer mesh: radiance = converged, direct = local."""
-    spec = scene_spec(name)
+    spec = SceneLibrary().spec(name)
     rad = predict_radiance(spec, res, cells=cells).astype(np.float32)
     direct = predict_radiance(spec, res, bounces=0, cells=cells).astype(np.float32)
     mask = (rad.sum(-1) > 0).astype(np.float32)

@@ -134,8 +134,9 @@ def test_ps_jobs_pair_area_twins(tmp_path, monkeypatch):
     area = "".join(f'[[light_set]]\ntype = "area"\ncenter = {toml(4 * v / np.linalg.norm(v))}\nsize = [1.0, 1.0]\n'
                    f'normal = {toml(-v / np.linalg.norm(v))}\nradiance = 16.0\n\n' for v in dirs)
     (tmp_path / "ps_cup_area.toml").write_text('name = "ps_cup_area"\n' + base + area + sweep)
-    monkeypatch.setenv("PBRBENCH_SCENES", str(tmp_path))
-    task = PhotometricStereoTask()
+    from pbrbench.scene.load import SceneLibrary
+
+    task = PhotometricStereoTask().bind(SceneLibrary(tmp_path))
     task.families = ("ps_cup", "missing_family")
     task.short_families = ("ps_cup",)
     jobs = task.jobs(get_quality("standard"))

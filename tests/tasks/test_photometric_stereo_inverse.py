@@ -34,7 +34,7 @@ def test_registered_as_inverse_with_the_scene_interface():
 ])
 def test_where_the_inverse_methods_run(scene, cond, quality, runs):
     job = Job("photometric_stereo", scene, cond, ())
-    assert PhotometricStereoTask._inverse_applies(job, get_quality(quality)) is runs
+    assert PhotometricStereoTask()._inverse_applies(job, get_quality(quality)) is runs
 
 
 def _fake_registry(fn):

@@ -33,7 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from pbrbench.quality import DRAFT, Quality, require
+from pbrbench.quality import Quality, require
 from pbrbench.render.proofs.common import Record, quiet_mitsuba
 from pbrbench.render.proofs.direct import (
     check_area_source,
@@ -85,7 +85,7 @@ CHECKS: dict[str, Callable[..., list[Record]]] = {
 }
 
 
-def run_checks(quality: Quality = DRAFT, checks=None, cache=None, *, progress=None, diagnostics_dir=None,
+def run_checks(quality: Quality, checks, cache, *, progress=None, diagnostics_dir=None,
                figures=None, photometric_stereo=None) -> list[Record]:
     """Run the named checks (default: all) at ``quality``; returns every record.  Statistical
     checks that fail write diagnostic images into ``diagnostics_dir`` when it is given; checks

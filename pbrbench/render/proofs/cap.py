@@ -42,7 +42,7 @@ import math
 
 import numpy as np
 
-from pbrbench.quality import DRAFT, Quality, require
+from pbrbench.quality import Quality, require
 from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.render.proofs.interreflection import MAX_EXCESS, Cells, _grey, _library, _z, cap_spec
 
@@ -57,7 +57,7 @@ def mesh_area_deficit(spec) -> float:
     from pbrbench.scene.mitsuba_dict import heightfield_mesh
 
     s = spec.shapes[0]
-    v, _, _, f = heightfield_mesh(s, spec.base_dir)
+    v, _, _, f = heightfield_mesh(s, spec.data_root)
     t = v[f]
     area = 0.5 * np.linalg.norm(np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0]), axis=1).sum()
     R = float(s.params.get("radius", 1.0))
@@ -264,7 +264,7 @@ def _case_records(c: dict) -> list[Record]:
     return out
 
 
-def check_cap(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None, photometric_stereo=None) -> list[Record]:
+def check_cap(quality: Quality, cache, *, figures=None, specs=None, photometric_stereo=None) -> list[Record]:
     """``radiosity_cap``: the caps of :func:`cap_cases` (or ``specs``)."""
     specs = cap_cases(quality) if specs is None else list(specs)
     cases = [cap_case(s, quality, cache, photometric_stereo=photometric_stereo) for s in specs]

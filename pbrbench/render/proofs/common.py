@@ -15,9 +15,8 @@ def record(check: str, measured: float, bound: float, detail: str = "", *, passe
 
 
 def ground_truth_of(spec: SceneSpec, quality: Quality, cache):
-    from pbrbench.render.cache import RenderCache, ground_truth
+    from pbrbench.render.cache import ground_truth
 
-    cache = cache if cache is not None else RenderCache()
     gt, _ = ground_truth(spec, quality, cache=cache)
     return gt
 

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from pbrbench.quality import DRAFT, Quality, require
+from pbrbench.quality import Quality, require
 from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.scene.spec import SceneSpec
 from pbrbench.shading import irradiance as irr
@@ -109,7 +109,7 @@ def _interior(ref: irr.SphereReference, gt_mask: np.ndarray, *, lit_fraction: fl
 
 
 # --------------------------------------------------------------------------- proof 1 + 4
-def check_sphere(quality: Quality = DRAFT, cache=None, *, kind: str = "directional") -> list[Record]:
+def check_sphere(quality: Quality, cache, *, kind: str = "directional") -> list[Record]:
     """Proof 1 (and the normals of proof 4): sphere vs the box-filtered analytic image."""
     light = DIR_LIGHT if kind == "directional" else POINT_LIGHT
     spec = sphere_spec(light, name=f"validate_sphere_{kind}")
@@ -141,7 +141,7 @@ def check_sphere(quality: Quality = DRAFT, cache=None, *, kind: str = "direction
     return out
 
 
-def check_depth(quality: Quality = DRAFT, cache=None) -> list[Record]:
+def check_depth(quality: Quality, cache) -> list[Record]:
     """Proof 4: depth (along the view axis) and normals of a tilted plane vs the analytic plane."""
     spec = tilted_plane_spec()
     gt = ground_truth_of(spec, quality, cache)
@@ -173,7 +173,7 @@ def _rotate(v, axis, angle_deg):
 
 
 # --------------------------------------------------------------------------- proof 2
-def check_area_source(quality: Quality = DRAFT, cache=None) -> list[Record]:
+def check_area_source(quality: Quality, cache) -> list[Record]:
     """Proof 2: Lambert's formula without the occluder; penumbra profile and edges with it."""
     spec = shadow_spec()
     gt = ground_truth_of(spec, quality, cache)
@@ -252,7 +252,7 @@ def _crossing(x: np.ndarray, f: np.ndarray, level: float, x_pred: float, *, outw
 
 
 # --------------------------------------------------------------------------- proof 3
-def check_integrating_sphere(quality: Quality = DRAFT, cache=None, albedos=(0.3, 0.6, 0.9)) -> list[Record]:
+def check_integrating_sphere(quality: Quality, cache, albedos=(0.3, 0.6, 0.9)) -> list[Record]:
     """Proof 3: inside a closed sphere, radiance = direct / (1 - rho)."""
     out = []
     for rho in albedos:
@@ -269,7 +269,7 @@ def check_integrating_sphere(quality: Quality = DRAFT, cache=None, albedos=(0.3,
 
 
 # --------------------------------------------------------------------------- proof 5
-def check_decomposition(quality: Quality = DRAFT, cache=None, *, alpha: float = 0.01, diagnostics_dir=None) -> list[Record]:
+def check_decomposition(quality: Quality, cache, *, alpha: float = 0.01, diagnostics_dir=None) -> list[Record]:
     """Proof 5: direct + indirect (seed 0) vs global (seed 1); sum of per-light images vs all lights."""
     from pbrbench.render.stats import compare_images
 

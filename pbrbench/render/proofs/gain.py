@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from pbrbench.quality import DRAFT, Quality, require
+from pbrbench.quality import Quality, require
 from pbrbench.render.proofs.common import Record, record
 from pbrbench.shading.gain_curve import gain_curve, gain_measurement_spec
 
@@ -84,7 +84,7 @@ def measure_gain_mitsuba(omega: float, slant: float, *, spp: int = 1 << 18, seed
             "expected_irradiance": np.array(exp), "response": complex(re, im), "expected_response": desc["H"]}
 
 
-def check_gain_curve(quality: Quality = DRAFT, cache=None, *, figures=None, points=None, seed: int = 0) -> list[Record]:
+def check_gain_curve(quality: Quality, cache, *, figures=None, points=None, seed: int = 0) -> list[Record]:
     """``gain_curve``: Mitsuba's measured gain against the kernel integral at (omega, slant) points
     (all of :data:`GAIN_POINTS` at standard, two in a short profile), ``GAIN_SPP`` samples per
     phase scaled like a render's."""

@@ -63,7 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from pbrbench.quality import DRAFT, Quality, require
+from pbrbench.quality import Quality, require
 from pbrbench.render.proofs.common import Record, ground_truth_of, record
 from pbrbench.scene.spec import SceneSpec
 
@@ -369,7 +369,7 @@ def groove_case(spec: SceneSpec, quality: Quality, cache) -> dict:
             "local": cmp.cells.mean(local[cmp.level]), "rho": float(np.mean(spec.material_of(spec.shapes[0]).albedo))}
 
 
-def check_groove(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None) -> list[Record]:
+def check_groove(quality: Quality, cache, *, figures=None, specs=None) -> list[Record]:
     """``radiosity_groove``: every albedo of both library grooves (the sweep cut by the quality
     profile), or the grooves ``specs`` (e.g. :func:`groove_spec` of other angles)."""
     q = require(quality)
@@ -456,7 +456,7 @@ def room_case(spec: SceneSpec, quality: Quality, cache) -> dict:
             "patches": len(model.patches)}
 
 
-def check_room(quality: Quality = DRAFT, cache=None, *, figures=None, specs=None) -> list[Record]:
+def check_room(quality: Quality, cache, *, figures=None, specs=None) -> list[Record]:
     """``radiosity_room``: the black and the white room (or ``specs``), patch cells."""
     specs = list(specs) if specs is not None else [_library("room_black")[0], _library("room_white")[0]]
     out, cases = [], []
