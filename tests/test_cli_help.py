@@ -34,3 +34,17 @@ def test_the_command_lines_hdr_merge_default_is_merge_hdrs():
 
     args = build_parser().parse_args(["infer", "hdr", "somewhere", "--out", "x"])
     assert args.merge == inspect.signature(merge_hdr).parameters["method"].default == "granados2010"
+
+
+def test_a_reader_that_stops_early_gets_no_error_line():
+    """``pbrbench scenes | head -1``: the pipe closes under the command; no "Broken pipe" error."""
+    import subprocess
+    import sys
+
+    p = subprocess.Popen([sys.executable, "-m", "pbrbench", "scenes", "--expand"], stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, bufsize=0)
+    first = p.stdout.read(64)
+    p.stdout.close()
+    err = p.stderr.read().decode()
+    p.wait(timeout=60)
+    assert first and "Broken pipe" not in err and "error" not in err.lower(), err

@@ -20,7 +20,6 @@ already stored.
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 import traceback
@@ -148,12 +147,18 @@ def _render_task(source, spec) -> tuple[str, dict, bool]:
 
 
 def _write_files(run_dir: Path, files: dict[str, bytes]):
+    """A job's figures under ``<run_dir>/figures``, each written atomically (a full disk leaves no
+    partial file and says which figure, and that --out is the place)."""
+    from pbrbench.errors import disk_error
+    from pbrbench.io import write_bytes
+
     for rel, data in files.items():
         p = run_dir / "figures" / rel
-        p.parent.mkdir(parents=True, exist_ok=True)
-        tmp = p.with_name(p.name + ".tmp")
-        tmp.write_bytes(data)
-        os.replace(tmp, p)
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            write_bytes(p, data)
+        except OSError as exc:
+            raise disk_error(exc, f"figure {p}", option="--out") from None
 
 
 def comparison_record(comparison) -> dict:
@@ -238,10 +243,12 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
     from pbrbench.progress import Progress
 
     outcome = RunOutcome(run_id, None, [], len(jobs), len(jobs) - len(todo), {}, task_info=info)
-    ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
-                                   settings=settings)
+    ex = None
     status = "failed"
     try:
+        # an executor that fails to start fails the run it was started for (recorded, not left running)
+        ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
+                                       settings=settings)
         # ---- ground truths
         t0 = time.perf_counter()
         metas: dict[str, tuple[dict, bool]] = {}
@@ -321,7 +328,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
         raise
     finally:
         lifecycle.finish(store, run_id, status, variant=variant, heartbeat=heartbeat, log=log)
-        if executor is None:
+        if executor is None and ex is not None:
             ex.close()
     outcome.wall_seconds = time.perf_counter() - t_start
     store.close()

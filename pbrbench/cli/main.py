@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import contextlib
 import importlib
-import os
 import pkgutil
 import signal
 import sqlite3
@@ -129,6 +128,14 @@ def main(argv: list[str] | None = None) -> int:
         except KeyboardInterrupt:
             _say("interrupted; completed work is kept (renders in the cache, scores in the store)")
             return EXIT_INTERRUPTED
+        except BrokenPipeError:
+            # the reader of our output went away (``pbrbench scenes | head``): nothing to say to it;
+            # stdout goes to /dev/null so the interpreter's final flush stays quiet (Python's advice)
+            import os
+
+            with contextlib.suppress(OSError):
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            return EXIT_USER
         except OSError as exc:
             # a disk or permission fault the command did not turn into a message itself
             if args.debug:

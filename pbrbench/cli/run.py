@@ -47,7 +47,8 @@ def register(sub):
                         "on sys.path or a path to a .py file, FUNCTION has the task's signature (docs/plugins.md), "
                         "NAME defaults to FUNCTION; e.g. photometric_stereo=./mine.py:solve")
     p.add_argument("--algorithm-time-limit", type=float, default=None, metavar="SECONDS",
-                   help="time limit of one plugin call (one job); a plugin past it is killed and scored as failed "
+                   help="time limit of a plugin per job (all its calls together); a plugin past it is killed and "
+                        "scored as failed "
                         "(default 600; 0: run plugins in this process, without a limit)")
     p.add_argument("--no-plugins", action="store_true",
                    help="do not load the installed plugins (entry points of the group pbrbench.algorithms)")
