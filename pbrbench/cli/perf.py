@@ -31,15 +31,13 @@ def register(sub):
     p.set_defaults(func=run)
 
 
-_HIGHER = ("speedup", "iou", "ratio_vs", "throughput", "per_s", "psnr", "accuracy", "fps")
-
-
 def direction(row: dict) -> str:
-    """'lower' or 'higher' is better: the row's own ``better`` key, else from metric and unit."""
-    if row.get("better") in ("lower", "higher"):
-        return row["better"]
-    text = f"{row.get('metric', '')} {row.get('unit', '')}".lower()
-    return "higher" if any(h in text for h in _HIGHER) else "lower"
+    """'lower' or 'higher' is better, as the row declares it (:func:`pbrbench.perf.row`)."""
+    better = row.get("better")
+    if better not in ("lower", "higher"):
+        raise ValueError(f"perf row {row.get('benchmark')}/{row.get('metric')}: no direction declared; "
+                         "make rows with pbrbench.perf.row(..., better='lower'|'higher')")
+    return better
 
 
 def to_scores(rows: list[dict], seconds: float) -> list[dict]:

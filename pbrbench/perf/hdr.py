@@ -55,6 +55,7 @@ import numpy as np
 from pbrbench.camera import Camera, bracket_exposure_times
 from pbrbench.infer import hdr
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
+from pbrbench.perf import row
 
 BENCH = "hdr"
 PEERS = {"opencv": ("cv2", "opencv-python-headless"), "colour_hdri": ("colour_hdri", "colour-hdri")}
@@ -274,11 +275,8 @@ CALIBRATION_RATIOS = (
 )
 
 
-def _row(case, method, metric, value, unit, better=None):
-    r = {"benchmark": BENCH, "case": case, "method": method, "metric": metric, "value": float(value), "unit": unit}
-    if better:
-        r["better"] = better
-    return r
+def _row(case, method, metric, value, unit, *, better):
+    return row(BENCH, case, method, metric, value, unit, better=better)
 
 
 def run(quick: bool = False) -> list[dict]:
@@ -324,7 +322,7 @@ def run(quick: bool = False) -> list[dict]:
                     continue
                 if name == "oracle" and metric == "merge_time":
                     continue
-                rows.append(_row(case, name, metric, value, unit))
+                rows.append(_row(case, name, metric, value, unit, better="lower"))   # errors, times
         ours = scores.get("ours-debevec1997")
         if ours is not None:
             for ref, sc in scores.items():

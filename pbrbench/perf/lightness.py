@@ -25,7 +25,7 @@ from pbrbench.infer.lightness import retinex
 from pbrbench.infer.specular import detect_specularities, remove_specularities
 from pbrbench.metrics.lightness import albedo_abs_error, intrinsic_lmse, ratio_errors, si_mse
 from pbrbench.metrics.specular import mask_iou, removal_errors, specular_mask_from_twin
-from pbrbench.perf import main_for
+from pbrbench.perf import main_for, row
 from pbrbench.shading.lambert import blinn_phong_highlights
 from pbrbench.shading.mondrian import mondrian_albedo, mondrian_scene, point_source_shading
 from pbrbench.shading.surfaces import on_grid
@@ -53,9 +53,9 @@ def glossy_sphere(size: int = 256, *, light=(0.4, 0.5, 0.77), shininess: float =
     return diffuse + spec, diffuse, s.mask
 
 
-def _row(case, method, metric, value, unit=""):
-    return {"benchmark": "lightness", "case": case, "method": method, "metric": metric,
-            "value": float(value), "unit": unit}
+def _row(case, method, metric, value, unit="", *, better="lower"):
+    """A row of this benchmark: errors and times (lower is better) unless ``better`` says otherwise."""
+    return row("lightness", case, method, metric, value, unit, better=better)
 
 
 def _time(fn, repeat):

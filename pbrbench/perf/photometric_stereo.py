@@ -35,7 +35,7 @@ from pbrbench.infer.integration import integrate_normals
 from pbrbench.infer.photometric_stereo import solve_photometric_stereo
 from pbrbench.infer.poisson import solve_gradient_field
 from pbrbench.metrics.normals import angular_error_stats, height_rmse
-from pbrbench.perf import main_for
+from pbrbench.perf import main_for, row
 from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
 from pbrbench.shading.surfaces import on_grid, pixel_grid
 
@@ -53,8 +53,12 @@ def notched_mask(size: int, half_width: float = 1.0) -> np.ndarray:
 
 
 def _row(case, method, metric, value, unit=""):
-    return {"benchmark": "photometric_stereo", "case": case, "method": method, "metric": metric,
-            "value": float(value), "unit": unit}
+    """A row of this benchmark; its direction from :data:`BETTER` (every metric it reports)."""
+    return row("photometric_stereo", case, method, metric, value, unit, better=BETTER[metric])
+
+
+BETTER = {"time_wall": "lower", "time_cpu": "lower", "height_rmse_pct_range": "lower", "valid_fraction": "higher",
+          "mean_angular_error": "lower", "median_angular_error": "lower", "albedo_mean_abs_error": "lower"}
 
 
 def _timed(fn, repeats):

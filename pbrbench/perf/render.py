@@ -10,6 +10,8 @@ import json
 import subprocess
 import sys
 
+from pbrbench.perf import row
+
 PROBE = r"""
 import json, sys, time
 import numpy as np
@@ -51,11 +53,11 @@ def run(quick: bool = False) -> list[dict]:
             print(f"skipping {v}: {exc}", file=sys.stderr)
             continue
         case = f"sphere {res}px {spp}spp direct"
-        out.append({"benchmark": "render", "case": case, "method": v, "metric": "wall", "value": times[v]["wall"], "unit": "s"})
-        out.append({"benchmark": "render", "case": case, "method": v, "metric": "cpu", "value": times[v]["cpu"], "unit": "s"})
+        out.append(row("render", case, v, "wall", times[v]["wall"], "s", better="lower"))
+        out.append(row("render", case, v, "cpu", times[v]["cpu"], "s", better="lower"))
     if len(times) == 2:
-        out.append({"benchmark": "render", "case": f"sphere {res}px {spp}spp direct", "method": "llvm/scalar",
-                    "metric": "speedup_wall", "value": times["scalar_rgb"]["wall"] / times["llvm_ad_rgb"]["wall"], "unit": "x"})
+        out.append(row("render", f"sphere {res}px {spp}spp direct", "llvm/scalar", "speedup_wall",
+                       times["scalar_rgb"]["wall"] / times["llvm_ad_rgb"]["wall"], "x", better="higher"))
     return out
 
 

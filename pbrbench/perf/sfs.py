@@ -19,6 +19,7 @@ import numpy as np
 
 from pbrbench.infer.sfs import METHODS, light_from_shading, shape_from_shading
 from pbrbench.metrics.sfs import flat_baseline, floor_scores, sfs_scores
+from pbrbench.perf import row
 from pbrbench.shading.lambert import lambertian_images
 from pbrbench.shading.surfaces import on_grid
 
@@ -45,8 +46,7 @@ def run(quick: bool = False) -> list[dict]:
     rows: list[dict] = []
 
     def add(case, method, metric, value, unit):
-        rows.append({"benchmark": "sfs", "case": case, "method": method, "metric": metric,
-                     "value": float(value), "unit": unit})
+        rows.append(row("sfs", case, method, metric, value, unit, better="lower"))   # errors, seconds, warnings
 
     for surface, lname, known, noise in _cases(quick):
         s = on_grid(surface, n, half_width=HALF_WIDTH)

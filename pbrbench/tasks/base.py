@@ -68,7 +68,7 @@ class Score:
     metric: str
     value: float
     seconds: float
-    better: str = "lower"            # "lower" or "higher": the direction of improvement
+    better: str                      # "lower" or "higher": the direction of improvement (no default)
     unit: str = ""
     uncertainty: float = float("nan")
     dof: float = 0.0
@@ -76,6 +76,10 @@ class Score:
     replicates: tuple | None = None
     rep_noise: float | None = None
     unstable: bool | None = None
+
+    def __post_init__(self):
+        if self.better not in ("lower", "higher"):
+            raise ValueError(f"score {self.metric!r}: better={self.better!r}; the metrics table says 'lower' or 'higher'")
 
     def as_dict(self) -> dict:
         return asdict(self)

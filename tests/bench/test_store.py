@@ -163,10 +163,16 @@ def test_compare_directions(tmp_path, capsys):
 def test_perf_rows_become_scores():
     from pbrbench.cli.perf import direction, to_scores
 
-    rows = [{"benchmark": "b", "case": "c", "method": "m", "metric": "time", "value": 0.5, "unit": "s"},
-            {"benchmark": "b", "case": "c", "method": "m", "metric": "mask IoU", "value": 0.9, "unit": ""},
-            {"benchmark": "b", "case": "c", "method": "m", "metric": "x", "value": 2.0, "unit": "", "better": "higher"}]
+    from pbrbench.perf import row
+
+    rows = [row("b", "c", "m", "time", 0.5, "s", better="lower"), row("b", "c", "m", "mask IoU", 0.9, better="higher"),
+            row("b", "c", "m", "speedup", 2.0, "x", better="higher")]
     assert [direction(r) for r in rows] == ["lower", "higher", "higher"]
+    # nothing is guessed from a name: a row without a declared direction is refused
+    with pytest.raises(ValueError, match="no direction"):
+        direction({"benchmark": "b", "case": "c", "method": "m", "metric": "speedup", "value": 2.0, "unit": "x"})
+    with pytest.raises(ValueError, match="better"):
+        row("b", "c", "m", "t", 1.0, better="smaller")
     s = to_scores(rows, 1.0)
     assert s[0]["task"] == "perf" and s[0]["scene"] == "b:c" and s[0]["algorithm"] == "m" and s[0]["unit"] == "s"
 
