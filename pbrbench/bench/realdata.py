@@ -116,17 +116,14 @@ class Evaluation:
                + ("; lower is better" if self.headline else "")]
         if not objs:
             return out + [f"  {n}" for n in self.notes] + [f"  failed: {f}" for f in self.failures]
-        w = max(len("object"), len("mean"), *(len(o) for o in objs))
-        cw = max(12, *(len(a) + 2 for a in algs))
-        out.append("  " + "object".ljust(w) + "".join(a.rjust(cw) for a in algs))
+        from pbrbench.text import text_table
 
         def cell(sc):
             if not sc or any(k not in sc for k in self.headline):
                 return "failed"
             return " / ".join(f"{sc[k]:.3g}" for k in self.headline)
 
-        for o in objs:
-            out.append("  " + o.ljust(w) + "".join(cell(cells.get((o, a))).rjust(cw) for a in algs))
+        table = [[o] + [cell(cells.get((o, a))) for a in algs] for o in objs]
         means = []
         for a in algs:
             vals = [cells.get((o, a)) for o in objs]
@@ -134,7 +131,7 @@ class Evaluation:
                 means.append(" / ".join(f"{np.mean([v[k] for v in vals]):.3g}" for k in self.headline))
             else:
                 means.append("-")
-        out.append("  " + "mean".ljust(w) + "".join(m.rjust(cw) for m in means))
+        out += text_table(table + [["mean", *means]], header=["object", *algs], indent="  ", gap="    ")
         out += [f"  note: {n}" for n in self.notes]
         out += [f"pbrbench: failed: {f}" for f in self.failures]
         if self.run_id:

@@ -137,13 +137,14 @@ def run(args) -> int:
         print(f"note: {n_hash} scene(s) have different content hashes in the two runs (scene file, data or render "
               "seed changed): their differences include that change")
     if shown:
+        from pbrbench.text import text_table
+
         cols = ("task", "scene", "condition", "algorithm", "metric")
-        w = {c: max([len(c)] + [len(str(r[c])) for r in shown]) for c in cols}
-        print("  ".join(c.ljust(w[c]) for c in cols) + f"  {'a':>10s} {'b':>10s} {'delta':>10s} {'limit':>9s}  direction")
-        for r in shown:
-            print("  ".join(str(r[c]).ljust(w[c]) for c in cols)
-                  + f"  {fmt(r['a']):>10s} {fmt(r['b']):>10s} {fmt(r['delta']):>10s} {fmt(r['limit']):>9s}  "
-                  f"{r['direction']} ({r['better']} is better)" + (" [scene changed]" if r["scene_changed"] else ""))
+        table = [[str(r[c]) for c in cols] + [fmt(r["a"]), fmt(r["b"]), fmt(r["delta"]), fmt(r["limit"]),
+                                              f"{r['direction']} ({r['better']} is better)"
+                                              + (" [scene changed]" if r["scene_changed"] else "")] for r in shown]
+        for line in text_table(table, header=(*cols, "a", "b", "delta", "limit", "direction"), align="lllllrrrrl"):
+            print(line)
     if args.html is not None:
         from pathlib import Path
 

@@ -59,20 +59,18 @@ def register(sub):
 
 def summary_lines(outcome) -> list[str]:
     from pbrbench.report.html import headline_tables
+    from pbrbench.text import text_table
 
     lines = []
     for h in headline_tables(outcome.scores, outcome.task_info):
         conds = h["conditions"]
-        w = max([len("algorithm")] + [len(r["algorithm"]) for r in h["rows"]])
         texts = [[(f"({c['text']})" if "ns" in c.get("cls", "").split() else c["text"]) + (" !" if c["mark"] == "regression" else "")
                   for c in r["cells"]] for r in h["rows"]]
-        cw = [max([len(c)] + [len(t[i]) for t in texts]) + 2 for i, c in enumerate(conds)]
         lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; {h['reference']} and the cost of each "
                      "effect, mean over matched scenes ± 1 SE; ( ) = inside the 95 % t interval of zero; "
                      "\"bias\": noise-limited, |Monte Carlo bias| > SE; ! = regression)")
-        lines.append("  " + "algorithm".ljust(w) + "".join(c.rjust(cw[i]) for i, c in enumerate(conds)))
-        for r, t in zip(h["rows"], texts, strict=True):
-            lines.append("  " + r["algorithm"].ljust(w) + "".join(x.rjust(cw[i]) for i, x in enumerate(t)))
+        lines += text_table([[r["algorithm"], *t] for r, t in zip(h["rows"], texts, strict=True)],
+                            header=["algorithm", *conds], indent="  ", gap="  ")
     return lines
 
 

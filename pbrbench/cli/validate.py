@@ -44,16 +44,10 @@ def _add_options(p):
 
 
 def format_table(records: list[dict]) -> str:
-    rows = [("check", "measured", "bound", "result")]
-    for r in records:
-        rows.append((r["check"], f"{r['measured']:.3g}", f"{r['bound']:.3g}", "pass" if r["passed"] else "FAIL"))
-    widths = [max(len(row[i]) for row in rows) for i in range(4)]
-    lines = []
-    for k, row in enumerate(rows):
-        lines.append("  ".join(c.ljust(widths[i]) if i == 0 else c.rjust(widths[i]) for i, c in enumerate(row)))
-        if k == 0:
-            lines.append("  ".join("-" * w for w in widths))
-    return "\n".join(lines)
+    from pbrbench.text import text_table
+
+    rows = [(r["check"], f"{r['measured']:.3g}", f"{r['bound']:.3g}", "pass" if r["passed"] else "FAIL") for r in records]
+    return "\n".join(text_table(rows, header=("check", "measured", "bound", "result"), rule=True))
 
 
 def to_scores(records: list[dict], quality: str, seconds: float) -> list[dict]:

@@ -25,9 +25,11 @@ def print_rows(rows: list[dict]) -> None:
     if not rows:
         print("(no rows)")
         return
-    w = [max(len(str(r[k])) for r in rows) for k in ("case", "method", "metric")]
-    for r in rows:
-        print(f"{r['case']:<{w[0]}}  {r['method']:<{w[1]}}  {r['metric']:<{w[2]}}  {r['value']:.4g} {r['unit']}")
+    from pbrbench.text import text_table
+
+    for line in text_table([(r["case"], r["method"], r["metric"], f"{r['value']:.4g} {r['unit']}") for r in rows],
+                           align="llll"):
+        print(line)
 
 
 def main_for(run, argv=None) -> None:
