@@ -223,6 +223,34 @@ class Comparison:
         return not self.strong and len(self.regressions) <= self.allowed
 
 
+def judge(old: float, cur: float, *, sd_old: float, dof_old: float, sd_cur: float, dof_cur: float, better: str,
+          n_old: int = 1, unstable: bool = False, rel: float = 0.0, alpha: float = ALPHA) -> tuple[str, float, bool]:
+    """The one comparator of two scores (``pbrbench compare`` and the regression check).
+
+    ``old`` is the mean of ``n_old`` measurements with standard deviation ``sd_old`` (on
+    ``dof_old`` degrees of freedom), ``cur`` one measurement with ``sd_cur``.  The pooled standard
+    deviation gives the limit of :func:`pbrbench.uncertainty.change` (plus the float32 rounding
+    floor and ``rel * |old|``): within it the scores are ``"same"``; beyond it ``"better"`` or
+    ``"worse"`` by the direction ``better``, or ``"unstable"`` when either side's replicates were
+    bimodal.  Both NaN is the same; NaN on one side only is worse (NaN now) or better (NaN before).
+    Returns ``(direction, limit, noise_known)``; without a noise estimate only a change beyond the
+    rounding floor (and ``rel``) counts, and ``noise_known`` is False."""
+    if math.isnan(old) and math.isnan(cur):
+        return "same", float("nan"), True
+    if math.isnan(old) or math.isnan(cur):
+        return ("better" if math.isnan(old) else "worse"), float("nan"), True
+    sd, dof = pooled_sd((sd_old, dof_old), (sd_cur, dof_cur))
+    test = change(old, cur, sd, dof, n_a=n_old, alpha=alpha)
+    limit = test["limit"] + rel * abs(old)
+    noise_known = test["changed"] is not None
+    if cur == old or abs(cur - old) <= (limit if finite(limit) else rounding(old) + rel * abs(old)):
+        return "same", limit, noise_known
+    if unstable:
+        return "unstable", limit, noise_known
+    worse = cur > old if better == "lower" else cur < old
+    return ("worse" if worse else "better"), limit, noise_known
+
+
 def compare(scores: list[dict], baselines: dict | None) -> Comparison:
     """Check ``scores`` (dicts with the key fields, value, better) against ``baselines``."""
     entries = (baselines or {}).get("entries", {})
@@ -245,33 +273,25 @@ def compare(scores: list[dict], baselines: dict | None) -> Comparison:
         if bv and s.get("algorithm_version") and bv != s["algorithm_version"]:
             changed_versions.setdefault(f"{s['task']}/{s['algorithm']}: {bv} -> {s['algorithm_version']}")
         old, cur = _val(b["value"]), _val(s["value"])
-        sd, dof = pooled_sd((_val(b.get("sd")), float(b.get("dof") or 0)), (_unc(s) or float("nan"), dof_of(s)))
-        test = change(old, cur, sd, dof, n_a=int(b.get("n_seeds") or 1))
-        tol = test["limit"]
-        better = b.get("better", "lower")
-        kind = None
-        if math.isnan(old):
-            kind = None if math.isnan(cur) else "improvement"
-        elif math.isnan(cur):
-            kind = "regression"
-        else:
-            moved = test["changed"]
-            if moved is None:
-                no_noise += 1
-                moved = cur != old and abs(cur - old) > tol
-            if moved:
-                delta = cur - old if better == "lower" else old - cur  # > 0: worse
-                kind = "regression" if delta > 0 else "improvement"
-                if b.get("unstable") or unstable_of(s):
-                    kind = "unstable"
+        sd_old, dof_old = _val(b.get("sd")), float(b.get("dof") or 0)
+        sd_cur, dof_cur = _unc(s) or float("nan"), dof_of(s)
+        better = b.get("better", "lower")     # the compact baseline format leaves out "lower"
+        n_old = int(b.get("n_seeds") or 1)
+        direction, tol, noise_known = judge(old, cur, sd_old=sd_old, dof_old=dof_old, sd_cur=sd_cur, dof_cur=dof_cur,
+                                            better=better, n_old=n_old,
+                                            unstable=bool(b.get("unstable") or unstable_of(s)))
+        if not noise_known and not (math.isnan(old) or math.isnan(cur)):
+            no_noise += 1
+        kind = {"worse": "regression", "better": "improvement", "unstable": "unstable"}.get(direction)
         if kind:
             bh = hashes.get(s["scene"], "")
             changed = bool(bh) and bool(s.get("scene_hash")) and not s["scene_hash"].startswith(bh)
             ch = Change(*(str(s.get(f, "")) for f in KEY_FIELDS), old=old, new=cur, tolerance=tol, better=better,
                         kind=kind, scene_changed=changed)
             {"regression": regs, "improvement": imps, "unstable": unst}[kind].append(ch)
-            if kind == "regression" and (math.isnan(cur) or change(old, cur, sd, dof, n_a=int(b.get("n_seeds") or 1),
-                                                                 alpha=alpha_fw)["changed"] is not False):
+            if kind == "regression" and (math.isnan(cur) or judge(
+                    old, cur, sd_old=sd_old, dof_old=dof_old, sd_cur=sd_cur, dof_cur=dof_cur, better=better,
+                    n_old=n_old, alpha=alpha_fw)[0] != "same"):
                 strong.append(ch)
     tasks = {s["task"] for s in scores}
     missing = sorted(k for k in entries if k.split("|", 1)[0] in tasks and k not in seen)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 
 def register(sub):
     p = sub.add_parser("compare", help="per-metric differences between two stored runs")
@@ -28,6 +26,10 @@ def register(sub):
 KEY = ("task", "scene", "condition", "algorithm", "metric")
 
 
+def _num(x) -> float:
+    return float("nan") if x is None else float(x)
+
+
 def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0) -> list[dict]:
     """Rows {key fields, a, b, delta, se, limit, direction, scene_changed} with direction better /
     worse / same / only-a / only-b / unstable.  The rule is the regression check's
@@ -36,8 +38,8 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
     jackknife standard errors, plus the float32 rounding floor and ``rel * |a|``; below that it is
     "same" (within the noise).  A pair either of whose replicates are bimodal is "unstable"
     rather than better or worse.  Both NaN is "same"; NaN on one side only is worse (or better)."""
-    from pbrbench.bench.regress import unstable_of
-    from pbrbench.uncertainty import change, combined_se, dof_of, finite, pooled_sd, rounding
+    from pbrbench.bench.regress import judge, unstable_of
+    from pbrbench.uncertainty import combined_se, dof_of
 
     A = {tuple(s[k] for k in KEY): s for s in a_scores}
     B = {tuple(s[k] for k in KEY): s for s in b_scores}
@@ -53,20 +55,10 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
             d = "only-b"
         elif sb is None:
             d = "only-a"
-        elif math.isnan(va) and math.isnan(vb):
-            d = "same"
-        elif math.isnan(va) or math.isnan(vb):
-            d = "better" if math.isnan(va) else "worse"
         else:
-            sd, dof = pooled_sd((sa.get("uncertainty"), dof_of(sa)), (sb.get("uncertainty"), dof_of(sb)))
-            test = change(va, vb, sd, dof, n_a=1)
-            lim = test["limit"] + rel * abs(va)
-            if vb == va or abs(vb - va) <= (lim if finite(lim) else rounding(va) + rel * abs(va)):
-                d = "same"
-            elif unstable_of(sa) or unstable_of(sb):
-                d = "unstable"
-            else:
-                d = "better" if (vb < va) == (better == "lower") else "worse"
+            d, lim, _ = judge(va, vb, sd_old=_num(sa.get("uncertainty")), dof_old=dof_of(sa),
+                              sd_cur=_num(sb.get("uncertainty")), dof_cur=dof_of(sb), better=better, n_old=1,
+                              unstable=bool(unstable_of(sa) or unstable_of(sb)), rel=rel)
         changed = bool(sa and sb and sa.get("scene_hash") and sb.get("scene_hash")
                        and sa["scene_hash"] != sb["scene_hash"])
         rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, se=se, limit=lim, better=better,
