@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from pbrbench.errors import UserError
+from pbrbench.memo import Memo
 from pbrbench.registry import (
     DEFAULT_TIME_LIMIT,
     ENTRY_POINT_GROUP,
@@ -161,7 +162,7 @@ def _target(src: PluginSource):
     return _attr(mod, attr.strip()) if attr.strip() else mod
 
 
-_LOADED: dict = {}   # PluginSource -> (Registry of the plugin's entries, skipped, unknown) in this process
+_LOADED = Memo("plugins loaded in this process (entries, skipped, unknown)", 64)   # by PluginSource
 
 
 def _register(src: PluginSource, tasks, known):

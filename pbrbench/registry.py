@@ -45,6 +45,7 @@ from pathlib import Path
 from types import MappingProxyType
 
 from pbrbench.errors import UserError
+from pbrbench.memo import Memo
 
 KINDS = ("method", "baseline", "floor", "plugin")
 ENTRY_POINT_GROUP = "pbrbench.algorithms"
@@ -57,10 +58,16 @@ def _unwrap(fn):
     return inspect.unwrap(fn)
 
 
-@functools.lru_cache(maxsize=512)
+_SOURCE_HASHES = Memo("source hashes of algorithm modules", 512)
+
+
 def _module_source_hash(module_name: str, qualname: str) -> str:
     """sha256 of the source of the module defining a function (of the function alone when the
-    module's source cannot be read), 10 hex digits."""
+    module's source cannot be read), 10 hex digits (memoised)."""
+    return _SOURCE_HASHES.compute((module_name, qualname), lambda: _source_hash_of(module_name, qualname))
+
+
+def _source_hash_of(module_name: str, qualname: str) -> str:
     mod = sys.modules.get(module_name)
     src = None
     if mod is not None:

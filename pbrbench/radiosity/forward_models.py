@@ -48,6 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pbrbench.checks import check_int
+from pbrbench.memo import Memo
 from pbrbench.radiosity.patches import Patches, make_patches, patches_from_spec
 
 __all__ = [
@@ -330,8 +331,8 @@ class SceneModel:
         return self.history[min(int(k), len(self.history) - 1)]
 
 
-_MEMO: OrderedDict = OrderedDict()
-_MESH: OrderedDict = OrderedDict()   # (mesh, form factors, visibility flag) by (geometry hash, patch size)
+_MEMO = Memo("radiosity scene models", MEMO_SIZE)
+_MESH = Memo("radiosity meshes and form factors", MESH_MEMO_SIZE)   # (mesh, F, visibility) by (geometry hash, patch size)
 _DISK: dict = {"dir": None}
 
 
@@ -395,11 +396,8 @@ def _save_form_factors(path, F, vis: bool) -> None:
 _INDEX: OrderedDict = OrderedDict()
 
 
-def _remember(store: OrderedDict, key, value, size: int | None = None):
+def _remember(store: Memo, key, value, size: int | None = None):
     store[key] = value
-    store.move_to_end(key)
-    while len(store) > (MEMO_SIZE if size is None else size):
-        store.popitem(last=False)
     return value
 
 
@@ -415,12 +413,10 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
     patch_size = view_width(spec) / cells
     key = (spec.content_hash(), round(patch_size, 12), int(area_samples), int(max_bounces), float(tol))
     if key in _MEMO:
-        _MEMO.move_to_end(key)
         return _MEMO[key]
     t0 = time.process_time()
     mkey = (geometry_hash(spec), key[1])   # the mesh and its form factors depend on neither the lights' sampling nor the render
     if mkey in _MESH:
-        _MESH.move_to_end(mkey)
         patches, F, vis = _MESH[mkey]
     else:
         patches = model_patches(spec, patch_size)

@@ -36,6 +36,7 @@ import sys
 from dataclasses import dataclass
 
 from pbrbench.errors import UserError
+from pbrbench.memo import Memo
 
 RGB_VARIANTS = ("cuda_ad_rgb", "llvm_ad_rgb", "scalar_rgb")
 MIN_LLVM = 16
@@ -134,7 +135,7 @@ _PROBE = (
 )
 
 
-_MAJOR_CACHE: dict[tuple, int | None] = {}
+_MAJOR_CACHE = Memo("libLLVM major versions by (path, size, mtime)", 64)
 
 
 def llvm_major(path: str) -> int | None:

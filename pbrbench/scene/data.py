@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from pbrbench.errors import SceneError
+from pbrbench.memo import Memo
 
 MAX_DATA_BYTES = 256 * 2**20   # largest array a scene data file may hold
 MAX_HEIGHT = 1e6               # largest |height| of a height array (scene units, like positions)
@@ -182,7 +183,7 @@ def load_data(base_dir: str | os.PathLike, rel: str, kind: str, *, where: str, e
     return check_height(a, where=at) if kind == "height" else check_texture(a, where=at)
 
 
-_CHECKED: dict[tuple, float] = {}
+_CHECKED = Memo("scene data files checked (largest |value| by real path, size, mtime, kind)", 256)
 
 
 def check_data_file(base_dir: str | os.PathLike, rel: str, kind: str, *, where: str) -> float:
@@ -193,7 +194,5 @@ def check_data_file(base_dir: str | os.PathLike, rel: str, kind: str, *, where: 
     key = (str(path), st.st_size, st.st_mtime_ns, kind)
     if key not in _CHECKED:
         a = load_data(base_dir, rel, kind, where=where)
-        if len(_CHECKED) > 256:
-            _CHECKED.clear()
         _CHECKED[key] = float(np.abs(a).max()) if a.size else 0.0
     return _CHECKED[key]

@@ -25,6 +25,7 @@ from pathlib import Path
 from pydantic import BaseModel, ValidationError
 
 from pbrbench.errors import SceneError
+from pbrbench.memo import Memo
 from pbrbench.scene import spec as S
 
 # Far above the library (at most 12 scenes per file, 12 lights, 4e7 samples per scene, 9e7 per
@@ -453,8 +454,6 @@ class SceneLibrary:
             found = {s.name: s for s in self.family(fam)}
             if name not in found:
                 raise ValueError(f"scene {name!r}: not in the library family {fam!r} ({self.root})")
-            if len(_SPECS) > 4096:
-                _SPECS.clear()
             _SPECS.update({(self, n): s for n, s in found.items()})
         return _SPECS[key]
 
@@ -467,4 +466,4 @@ class SceneLibrary:
         return resolve(names_or_paths, self.root, data_dirs=self.data_dirs, allow_large=self.allow_large)
 
 
-_SPECS: dict = {}    # (library, scene name) -> spec, for SceneLibrary.spec
+_SPECS = Memo("scene specs by (library, name)", 4096)    # for SceneLibrary.spec

@@ -41,6 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.checks import as_float_array, check_finite, check_int, check_positive
+from pbrbench.memo import Memo
 
 __all__ = [
     "patch_geometry",
@@ -100,7 +101,7 @@ def patch_geometry(vertices) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     return c, n, area, radius
 
 
-_GAUSS: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+_GAUSS = Memo("Gauss-Legendre rules on [0, 1] by order", 64)
 
 
 def gauss_legendre01(k: int) -> tuple[np.ndarray, np.ndarray]:
