@@ -14,10 +14,11 @@ Imports nothing outside the standard library.
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata as md
 import os
 import re
 from pathlib import Path
+
+from pbrbench.versions import installed_versions, normalize
 
 __all__ = ["LOCK_FILE", "default_lock_path", "installed_versions", "locked_versions", "normalize", "parse_lock"]
 
@@ -27,9 +28,6 @@ LOCK_FILE = "requirements.lock"
 _PIN = re.compile(r"^([A-Za-z0-9][A-Za-z0-9._-]*)(?:\[[^\]]*\])?\s*==\s*([^\s;\\#]+)")
 
 
-def normalize(name: str) -> str:
-    """A distribution name in its canonical form (PEP 503: lower case, runs of ``-_.`` as ``-``)."""
-    return re.sub(r"[-_.]+", "-", name).lower()
 
 
 def default_lock_path() -> Path | None:
@@ -51,15 +49,6 @@ def parse_lock(text: str) -> dict[str, str]:
     return pins
 
 
-def installed_versions() -> dict[str, str]:
-    """``{normalized name: version}`` of the distributions this interpreter imports (the first
-    one on ``sys.path`` where a name is installed twice, as the import system would pick)."""
-    out: dict[str, str] = {}
-    for dist in md.distributions():
-        name = dist.metadata["Name"]
-        if name:
-            out.setdefault(normalize(name), dist.version)
-    return out
 
 
 def locked_versions(path: str | os.PathLike | None = None) -> dict:

@@ -53,7 +53,7 @@ def test_infer_imports_only_numpy_scipy_and_checks_at_import_time():
 LAYERS = (
     ("__init__", "errors"),                 # the version; one-line user errors
     ("checks",),                            # input checks and the methods dispatcher
-    ("settings", "quality", "scratch", "progress", "lock", "uncertainty", "io", "camera", "text", "memo"),   # leaves
+    ("settings", "quality", "scratch", "progress", "lock", "uncertainty", "io", "camera", "text", "memo", "versions"),   # leaves
     ("infer", "shading"),                   # NumPy inference; NumPy forward models and closed forms
     ("metrics", "datasets"),                # scores of inferred quantities; real data on disk
     ("scene",),                             # scene files, specs, their data files

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import importlib.metadata
 import json
 import os
 import pickle
@@ -36,11 +35,11 @@ def code_hash() -> str:
     for p in sorted(root.rglob("*.py")):
         h.update(str(p.relative_to(root)).encode())
         h.update(p.read_bytes())
+    from pbrbench.versions import version
+
     for pkg in ("numpy", "scipy"):
-        try:
-            h.update(f"{pkg}={importlib.metadata.version(pkg)}".encode())
-        except importlib.metadata.PackageNotFoundError:
-            pass
+        if version(pkg) is not None:
+            h.update(f"{pkg}={version(pkg)}".encode())
     return h.hexdigest()
 
 

@@ -169,13 +169,7 @@ def git_revision(cwd: str | os.PathLike | None = None) -> str | None:
 
 def environment() -> dict:
     """Versions and machine description recorded with each run (imports no renderer)."""
-    import importlib.metadata as md
-
-    def v(pkg):
-        try:
-            return md.version(pkg)
-        except md.PackageNotFoundError:
-            return None
+    from pbrbench.versions import version as v
 
     return {
         "git_revision": git_revision(),

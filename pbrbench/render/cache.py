@@ -14,7 +14,6 @@ Root: ``--cache`` / ``PBRBENCH_CACHE``, else ``$XDG_CACHE_HOME/pbrbench`` (``~/.
 from __future__ import annotations
 
 import hashlib
-import importlib.metadata
 import json
 import os
 import shutil
@@ -30,6 +29,7 @@ from pbrbench.quality import Quality, require
 from pbrbench.render.groundtruth import GT_FORMAT, GroundTruth, render_ground_truth
 from pbrbench.render.variant import choose_variant, current_choice
 from pbrbench.scene.spec import SceneSpec
+from pbrbench.versions import version
 
 
 def _sha256(path: Path) -> str:
@@ -41,10 +41,7 @@ def _sha256(path: Path) -> str:
 
 
 def cache_key(spec: SceneSpec, quality: Quality, variant: str) -> str:
-    try:
-        mv = importlib.metadata.version("mitsuba")
-    except importlib.metadata.PackageNotFoundError:  # pragma: no cover
-        mv = "?"
+    mv = version("mitsuba") or "?"
     blob = json.dumps({"scene": spec.content_hash(), "quality": require(quality).render_key(), "variant": variant,
                        "mitsuba": mv, "format": GT_FORMAT}, sort_keys=True)
     return hashlib.sha256(blob.encode()).hexdigest()

@@ -27,9 +27,7 @@ scene's ``render.seed``.
 from __future__ import annotations
 
 import gc
-import importlib.metadata
 import math
-import platform
 import time
 from dataclasses import dataclass, field
 
@@ -205,13 +203,10 @@ DERIVED = {"indirect": ("radiance", "direct"), "unoccluded_fraction": ("direct",
 
 
 def versions() -> dict:
-    out = {"python": platform.python_version()}
-    for pkg in ("pbrbench", "mitsuba", "drjit", "numpy", "scipy"):
-        try:
-            out[pkg] = importlib.metadata.version(pkg)
-        except importlib.metadata.PackageNotFoundError:
-            out[pkg] = None
-    return out
+    """The versions a ground truth records (:func:`pbrbench.versions.versions`)."""
+    from pbrbench.versions import versions as recorded
+
+    return recorded()
 
 
 def _film_arrays(scene) -> dict[str, np.ndarray]:
