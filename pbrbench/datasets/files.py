@@ -12,7 +12,6 @@ directions that are not unit length) gives a :class:`DataWarning` of one line an
 from __future__ import annotations
 
 import contextlib
-import os
 import re
 import struct
 import warnings
@@ -34,7 +33,7 @@ def warn(message: str) -> None:
     """Emit ``message`` as a :class:`DataWarning` (one line)."""
     warnings.warn(" ".join(str(message).split()), DataWarning, stacklevel=3)
 
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".npy", ".jpg", ".jpeg", ".bmp", ".ppm", ".pgm")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".exr", ".npy", ".jpg", ".jpeg", ".bmp", ".tga", ".ppm", ".pgm", ".pfm")
 
 
 def find(folder: Path, *names: str) -> Path | None:
@@ -146,7 +145,7 @@ def _header_values(path: Path) -> int | None:
 
         with tifffile.TiffFile(str(path)) as tf:
             return int(np.prod(tf.series[0].shape, dtype=np.float64)) if tf.series else None
-    if suffix in (".jpg", ".jpeg", ".bmp", ".ppm", ".pgm"):
+    if suffix in (".jpg", ".jpeg", ".bmp", ".tga", ".ppm", ".pgm"):
         from PIL import Image
 
         with Image.open(path) as im:
@@ -166,30 +165,12 @@ def _brief(e: BaseException) -> str:
 
 @contextlib.contextmanager
 def quiet_stderr():
-    """Hold back what C libraries print on file descriptor 2 (OpenEXR's decoder reports a damaged
-    file there before raising) so that a user sees one line; yields a list that receives the
-    first line held back.  Does nothing where descriptor 2 cannot be redirected."""
-    held: list[str] = []
-    try:
-        import sys
-        import tempfile
+    """What C libraries print on descriptors 1 and 2 held back (:func:`pbrbench.io.quiet_output`);
+    yields a list that receives the first line held back."""
+    from pbrbench.io import quiet_output
 
-        sys.stderr.flush()
-        saved = os.dup(2)
-    except (OSError, ValueError, AttributeError):
+    with quiet_output() as held:
         yield held
-        return
-    with tempfile.TemporaryFile() as tmp:
-        os.dup2(tmp.fileno(), 2)
-        try:
-            yield held
-        finally:
-            os.dup2(saved, 2)
-            os.close(saved)
-            tmp.seek(0)
-            text = tmp.read(4000).decode("utf-8", "replace").strip()
-            if text:
-                held.append(" ".join(text.splitlines()[0].split()))
 
 
 def load_image(path, what: str = "image") -> np.ndarray:
@@ -197,7 +178,7 @@ def load_image(path, what: str = "image") -> np.ndarray:
     one-line :class:`~pbrbench.errors.UserError` naming the file: missing, empty (0 bytes),
     unreadable or damaged, pickled, or a header announcing more than :data:`MAX_VALUES` values.
     Float pixels must be finite."""
-    from pbrbench.io import read_image
+    from pbrbench.io import TooLarge, read_image
 
     path = Path(path)
     try:
@@ -216,6 +197,8 @@ def load_image(path, what: str = "image") -> np.ndarray:
             a = np.asarray(read_image(path))
     except UserError:
         raise
+    except TooLarge as e:
+        raise UserError(str(e)) from None
     except MemoryError:
         raise UserError(f"{path}: too large to load into memory; crop or downsample the {what}") from None
     except PermissionError:
