@@ -18,7 +18,9 @@ dispatches by name:
 - ``"debevec1997"``: :func:`calibrate_debevec1997`, least squares for ``g = ln f^{-1}``;
 - ``"robertson2003"``: :func:`calibrate_robertson2003`, the ML alternation of Robertson et al.;
 - ``"mitsunaga1999"``: :func:`calibrate_mitsunaga1999`, polynomial ``f^{-1}`` and re-estimated
-  exposure ratios.
+  exposure ratios;
+- ``"grossberg_nayar2003"``: :func:`calibrate_grossberg_nayar2003`, from the exposures'
+  histograms only (brightness transfer functions): needs no registration.
 
 Merge methods (:mod:`pbrbench.infer.hdr.merge`): :data:`MERGE_METHODS` and the dispatcher
 :func:`merge_hdr`; ``"granados2010"`` (:func:`merge_granados2010`, the linear-domain
@@ -36,6 +38,8 @@ References
   exposures", ICIP 1999; "Estimation-theoretic approach to dynamic range enhancement using
   multiple exposures", Journal of Electronic Imaging 12(2), 2003.
 - T. Mitsunaga and S. K. Nayar, "Radiometric Self Calibration", CVPR 1999.
+- M. D. Grossberg and S. K. Nayar, "Determining the camera response from images: what is
+  knowable?", IEEE TPAMI 25(11):1455-1467, 2003.
 - M. Granados, B. Ajdin, M. Wand, C. Theobalt, H.-P. Seidel and H. P. A. Lensch, "Optimal HDR
   reconstruction with linear digital cameras", CVPR 2010 (inverse-variance weights).
 """
@@ -45,6 +49,7 @@ from __future__ import annotations
 from pbrbench.checks import call_method
 from pbrbench.infer.hdr._common import CALIBRATION_WEIGHTINGS
 from pbrbench.infer.hdr.debevec1997 import calibrate_debevec1997
+from pbrbench.infer.hdr.grossberg_nayar2003 import calibrate_grossberg_nayar2003
 from pbrbench.infer.hdr.merge import (
     MERGE_METHODS,
     MERGE_WEIGHTINGS,
@@ -63,6 +68,7 @@ __all__ = [
     "MERGE_WEIGHTINGS",
     "CameraResponse",
     "calibrate_debevec1997",
+    "calibrate_grossberg_nayar2003",
     "calibrate_mitsunaga1999",
     "calibrate_response",
     "calibrate_robertson2003",
@@ -75,6 +81,7 @@ CALIBRATION_METHODS = {
     "debevec1997": calibrate_debevec1997,
     "robertson2003": calibrate_robertson2003,
     "mitsunaga1999": calibrate_mitsunaga1999,
+    "grossberg_nayar2003": calibrate_grossberg_nayar2003,
 }
 
 

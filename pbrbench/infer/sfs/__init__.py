@@ -27,12 +27,16 @@ shape_from_shading
     - ``"pentland1990"``: :func:`shape_from_shading_pentland1990` (Pentland 1990), linear
       shape from shading in the Fourier domain;
     - ``"kimmel2001"``: :func:`shape_from_shading_kimmel2001` (Kimmel & Sethian 2001), fast
-      marching of the eikonal equation (scikit-fmm, imported when called).
+      marching of the eikonal equation (scikit-fmm, imported when called);
+    - ``"zheng_chellappa1991"``: :func:`shape_from_shading_zheng_chellappa1991` (Zheng &
+      Chellappa 1991), albedo and light estimated from the image statistics, then Horn's
+      scheme: the one method that ignores the given light and albedo (``light=None`` allowed).
 light_from_shading
     Dispatcher over ``LIGHT_METHODS``: light direction (and albedo) from one image:
     ``"contour"`` (:func:`light_from_shading_contour`, occluding-contour robust fit; a
-    descriptive name) and ``"lee_rosenfeld1985"`` (:func:`light_from_shading_lee_rosenfeld1985`,
-    image statistics).
+    descriptive name), ``"lee_rosenfeld1985"`` (:func:`light_from_shading_lee_rosenfeld1985`,
+    image statistics) and ``"zheng_chellappa1991"`` (:func:`light_from_shading_zheng_chellappa1991`,
+    the brightness moments' closed form).
 SFSResult, LightEstimate
     Frozen result records.
 integrate_gradients, occluding_boundary
@@ -54,6 +58,8 @@ References
   72(4):448-455, 1982.
 - P. Nillius and J.-O. Eklundh, "Automatic estimation of the projected light source direction",
   CVPR 2001 (light from the occluding contour).
+- Q. Zheng and R. Chellappa, "Estimation of illuminant direction, albedo, and shape from
+  shading", IEEE TPAMI 13(7):680-702, 1991.
 - R. Zhang, P.-S. Tsai, J. E. Cryer and M. Shah, "Shape from shading: a survey", IEEE TPAMI
   21(8):690-706, 1999.
 """
@@ -73,6 +79,10 @@ from pbrbench.infer.sfs.kimmel2001 import shape_from_shading_kimmel2001
 from pbrbench.infer.sfs.lee_rosenfeld1985 import light_from_shading_lee_rosenfeld1985
 from pbrbench.infer.sfs.pentland1990 import shape_from_shading_pentland1990
 from pbrbench.infer.sfs.tsai_shah1994 import shape_from_shading_tsai_shah1994
+from pbrbench.infer.sfs.zheng_chellappa1991 import (
+    light_from_shading_zheng_chellappa1991,
+    shape_from_shading_zheng_chellappa1991,
+)
 
 __all__ = [
     "METHODS",
@@ -84,9 +94,11 @@ __all__ = [
     "shape_from_shading_tsai_shah1994",
     "shape_from_shading_pentland1990",
     "shape_from_shading_kimmel2001",
+    "shape_from_shading_zheng_chellappa1991",
     "light_from_shading",
     "light_from_shading_contour",
     "light_from_shading_lee_rosenfeld1985",
+    "light_from_shading_zheng_chellappa1991",
     "integrate_gradients",
     "occluding_boundary",
 ]
@@ -96,10 +108,12 @@ METHODS = {
     "tsai_shah1994": shape_from_shading_tsai_shah1994,
     "pentland1990": shape_from_shading_pentland1990,
     "kimmel2001": shape_from_shading_kimmel2001,
+    "zheng_chellappa1991": shape_from_shading_zheng_chellappa1991,
 }
 LIGHT_METHODS = {
     "contour": light_from_shading_contour,
     "lee_rosenfeld1985": light_from_shading_lee_rosenfeld1985,
+    "zheng_chellappa1991": light_from_shading_zheng_chellappa1991,
 }
 
 

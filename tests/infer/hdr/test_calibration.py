@@ -7,6 +7,7 @@ from pbrbench.camera import Camera, response_curve
 from pbrbench.infer.hdr import (
     CALIBRATION_METHODS,
     calibrate_debevec1997,
+    calibrate_grossberg_nayar2003,
     calibrate_mitsunaga1999,
     calibrate_robertson2003,
     merge_hdr,
@@ -24,7 +25,8 @@ FAST = [calibrate_debevec1997, calibrate_robertson2003, calibrate_mn5]
 
 def test_methods_table_names_the_papers():
     assert CALIBRATION_METHODS == {"debevec1997": calibrate_debevec1997, "robertson2003": calibrate_robertson2003,
-                                   "mitsunaga1999": calibrate_mitsunaga1999}
+                                   "mitsunaga1999": calibrate_mitsunaga1999,
+                                   "grossberg_nayar2003": calibrate_grossberg_nayar2003}
 
 
 @pytest.mark.parametrize("name", ["gamma", "film", "polynomial"])
