@@ -5,13 +5,38 @@ set of two sources (``light00`` along the view, ``light01`` oblique, 45 degrees 
 at a time; each light is a separate case, scored under the scene label ``<scene>:view`` or
 ``<scene>:oblique`` (a scene with a single light in ``lights`` is one case under its own name).
 Input: one grey image (channel mean); the light is the case's nominal source (direction in the
-camera frame; for an area twin ``normalize(center - target)``) and the albedo is the known
-``rho E / pi`` (median albedo AOV times the nominal irradiance over pi), as every method assumes a
-known uniform albedo.
+camera frame; for an area twin ``normalize(center - target)``, for a point source
+``normalize(position - target)``) and the albedo is the known ``rho E / pi`` (median albedo AOV
+times the nominal irradiance over pi), as every method but one assumes a known uniform albedo.
 
-Conditions: ``local`` (``direct``), ``local+noise0.01`` (1 % Gaussian noise of the peak),
-``area`` (the ``*_area`` twin's ``direct``: a nearby rectangle along the nominal direction) and
-``global`` (``radiance``: interreflection).
+Conditions:
+
+* ``local`` (``direct``) and ``local+noise0.01`` (1 % Gaussian noise of the peak);
+* ``local+ambient0.1``: the chapter's ``Image = Diffuse + Ambient`` (section 1.1.3, ``I = rho
+  (N . S) + rho A``): the ``direct`` image plus the constant ``rho A`` on the object, ``A`` a
+  tenth of the source's term at normal incidence (``rho A = 0.1 rho E / pi``, ``rho`` the albedo
+  AOV), the same in lit and attached-shadow pixels; the methods are told nothing about it (the
+  given albedo stays ``rho E / pi``);
+* ``local+wrong_albedo0.7``: the ``direct`` image, but every method is handed 0.7 times the
+  known albedo: SFS given a wrong albedo, against ``zheng_chellappa1991``, which estimates the
+  albedo (and light) from the image and ignores the one given (the chapter's section 1.3.6 says
+  no method infers both shading and albedo: this one does, for a uniform albedo);
+* ``area`` (the ``*_area`` twin's ``direct``: a nearby rectangle along the nominal direction);
+* ``area+near<d>`` (``d`` = 2, 4, 8, :data:`NEAR_DISTANCES`): the ``sfs_near`` family, the
+  sphere and camera of ``sfs_sphere`` lit by an isotropic point source ``d`` radii from the
+  centre, along the view or oblique (direct light only); the methods are given the nominal
+  direction from the object's centre and the irradiance ``I / d^2`` there.  Draft runs keep the
+  middle distance only;
+* ``global`` (``radiance``: interreflection).
+
+Matched scenes (the headline pairs a condition's score with the reference's by scene label):
+``ambient`` and ``wrong_albedo`` are scored on the reference's own ground truth (paired ±); an
+``area`` twin is labelled ``<family>_area:<label>``, which the report matches to
+``<family>:<label>``; a near scene is labelled with the ``sfs_sphere`` case it is the twin of
+(``sfs_sphere:view`` / ``sfs_sphere:oblique``; its job is on ``sfs_near[...]``, its condition
+names the distance), and, being another render, its ± adds the two scenes' errors in
+quadrature, like the area twins'.  Draft runs add ``ambient``, ``wrong_albedo`` and ``near`` on
+``sfs_sphere`` only.
 
 Algorithms (from the registry), by calling convention (``interface``):
 
@@ -19,7 +44,9 @@ Algorithms (from the registry), by calling convention (``interface``):
   ``fn(image, light, *, albedo, mask, pixel_size)`` returning an
   :class:`~pbrbench.infer.sfs.SFSResult` or anything with ``height`` (H, W) and ``normals``
   (H, W, 3) (and optionally ``converged``); the same methods with the light and albedo estimated
-  from the image by the ``contour`` estimator (``<method>+estimated_light``, condition ``local``);
+  from the image by the ``contour`` estimator (``<method>+estimated_light``, condition ``local``),
+  except a method that estimates them itself (its ``light`` argument defaults to None:
+  ``zheng_chellappa1991``);
 * ``light`` -- the light estimators of :data:`pbrbench.infer.sfs.LIGHT_METHODS`, called as
   ``fn(image, mask)``, scored by ``light_error_deg`` (condition ``local``);
 * ``reference`` -- ``baseline:flat`` (z = 0, normals along the view) and
@@ -35,6 +62,7 @@ scale, relative RMSE, mean normal angle, the convex/concave-ambiguity-aware vers
 from __future__ import annotations
 
 import functools
+import inspect
 
 import numpy as np
 
@@ -48,8 +76,28 @@ from pbrbench.tasks.common.scoring import ScoreBook, Timer, attribute, call, che
 
 FAMILIES = ("sfs_sphere", "sfs_vase", "sfs_random")
 NOISE = 0.01
+AMBIENT = 0.1         # rho A as a fraction of rho E / pi (local+ambient0.1)
+WRONG_ALBEDO = 0.7    # the factor on the known albedo (local+wrong_albedo0.7)
+NEAR_FAMILY = "sfs_near"
+NEAR_MATCH = "sfs_sphere"   # the family whose cases the near scenes are the twins of
+NEAR_DISTANCES = (2, 4, 8)  # point-source distances of sfs_near, in sphere radii
 EST = "+estimated_light"
 ESTIMATOR = "contour"
+
+
+def near_condition(distance: float) -> str:
+    """``area+near<d>``: the condition of a point source ``distance`` from the object's centre."""
+    return f"area+near{round(float(distance), 2):g}"
+
+
+def estimates_its_own_light(fn) -> bool:
+    """Whether an SFS method estimates the light itself: its ``light`` argument defaults to None
+    (then a ``+estimated_light`` variant would only repeat it)."""
+    try:
+        p = inspect.signature(fn).parameters.get("light")
+    except (TypeError, ValueError):
+        return False
+    return p is not None and p.default is None
 
 
 def with_estimated_light(image, light, *, albedo=None, mask=None, pixel_size=1.0, method, estimator, **options):
@@ -87,7 +135,9 @@ class SFSTask(Task):
     name = "sfs"
     description = ("Shape from one shaded image (Horn 1989, Tsai-Shah 1994, Pentland 1990, Kimmel-"
                    "Sethian 2001) with the flat baseline and the true-normal integration floor.")
-    conditions = ("local", f"local+noise{NOISE:g}", "area", "global")
+    conditions = ("local", f"local+noise{NOISE:g}", f"local+ambient{AMBIENT:g}",
+                  f"local+wrong_albedo{WRONG_ALBEDO:g}", "area", *(near_condition(d) for d in NEAR_DISTANCES),
+                  "global")
     headline_metric = "normal_mean_deg"
     families = FAMILIES
     short_families = ("sfs_sphere", "sfs_vase")   # the vase stands on a plane: interreflection
@@ -107,7 +157,7 @@ class SFSTask(Task):
                                                                 estimator=LIGHT_METHODS[ESTIMATOR]),
                           conditions=("local",), figures=False,
                           description=f"{n} with the light and albedo estimated by the {ESTIMATOR} method")
-                for n, fn in METHODS.items()]
+                for n, fn in METHODS.items() if not estimates_its_own_light(fn)]
         out += [Algorithm("baseline:flat", self.name, flat_reference, kind="baseline", interface="reference"),
                 Algorithm("floor:integrate_true_normals", self.name, floor_reference, kind="floor",
                           interface="reference")]
@@ -134,6 +184,7 @@ class SFSTask(Task):
 
     def jobs(self, quality) -> list[Job]:
         out = []
+        short = quality.short_subset
         for fam in quality.pick(self.families, self.short_families):
             twins = self.scenes.family(f"{fam}_area")
             for i, s in enumerate(self.scenes.family(fam)):
@@ -143,9 +194,31 @@ class SFSTask(Task):
                     p = self._params(s, light, k)
                     out.append(Job(self.name, s.name, "local", p))
                     out.append(Job(self.name, s.name, f"local+noise{NOISE:g}", p))
+                    if not short or fam == NEAR_MATCH:
+                        out.append(Job(self.name, s.name, f"local+ambient{AMBIENT:g}", p))
+                        out.append(Job(self.name, s.name, f"local+wrong_albedo{WRONG_ALBEDO:g}", p))
                     out.append(Job(self.name, s.name, "global", p))
                     if k in tw_cases:
                         out.append(Job(self.name, tw.name, "area", self._params(tw, tw_cases[k], k)))
+        if NEAR_MATCH in quality.pick(self.families, self.short_families):
+            out += self._near_jobs(quality)
+        return out
+
+    def _near_jobs(self, quality) -> list[Job]:
+        """``area+near<d>`` jobs: each scene of ``sfs_near`` (one point source), labelled as the
+        ``sfs_sphere`` case of its direction; per direction the distances ``quality.keep`` keeps
+        less one (draft: the middle one)."""
+        by_label: dict[str, list] = {}
+        for s in self.scenes.family(NEAR_FAMILY):
+            for light, k in self._cases(s):
+                p = self._params(s, light, k)
+                d = float(np.linalg.norm(np.asarray(light.position, float) - np.asarray(s.camera.target, float)))
+                by_label.setdefault(dict(p)["label"], []).append((d, s, p))
+        out = []
+        for label in sorted(by_label):
+            cases = sorted(by_label[label], key=lambda c: c[0])
+            for d, s, p in quality.keep(cases, extra=-1 if quality.sweep_keep else 0):
+                out.append(Job(self.name, s.name, near_condition(d), p + (("match", NEAR_MATCH),)))
         return out
 
     # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
@@ -178,14 +251,17 @@ class SFSTask(Task):
         mask = gt.mask
         light = np.asarray(job.param("light"), float)
         irr = float(job.param("irradiance", np.pi))
+        if mods.get("ambient", 0) > 0:   # Image = Diffuse + Ambient: rho A, A = ambient * E / pi
+            img = img + np.where(mask, mods["ambient"] * grey(gt["albedo"]) * irr / np.pi, 0.0)
         rho = float(np.median(grey(gt["albedo"])[mask])) if mask.any() else 1.0
-        known_albedo = rho * irr / np.pi
+        known_albedo = rho * irr / np.pi * mods.get("wrong_albedo", 1.0)
         px = pixel_size(job.param("half_width", 1.0), img.shape[1])
         z_true = np.where(mask, -gt["depth"].astype(float), 0.0)
         zrange = float(np.ptp(z_true[mask])) if mask.any() else None
         n_true = gt["normals"].astype(float)
         label = job.param("label")
-        book = ScoreBook(job, scene_hash(gt), algorithms, scene_label=f"{job.scene}:{label}" if label else None)
+        shown = job.param("match", job.scene)   # a near scene is scored as the sfs_sphere case it twins
+        book = ScoreBook(job, scene_hash(gt), algorithms, scene_label=f"{shown}:{label}" if label else None)
         res = JobResult(job)
         res.images["linear:input"] = display(img)
         res.images["normals: truth"] = normals_display(n_true, mask)
