@@ -11,7 +11,26 @@ conditions, appended to the base:
 * ``global+readnoise0.002``: Gaussian read noise of 0.2 % of full scale, plus shot noise with a
   full well of 10000 electrons;
 * ``global+3x3stops``: only 3 exposures, 3 stops apart;
-* ``global+clipped``: the brightest 2 % of the pixels clip even in the shortest exposure.
+* ``global+clipped``: the brightest 2 % of the pixels clip even in the shortest exposure;
+* ``global+unregistered``: the noise-free bracket of ``global+noise0``, each exposure captured
+  from its own crop of the radiance, offset by up to :data:`SHIFT` pixels in x and y from the
+  common crop (offsets uniform integers from the job's seeded generator,
+  :func:`~pbrbench.tasks.common.inputs.job_rng`; an exposure may draw no offset).  Calibration
+  gets the shifted exposures; the chapter (section 1.3.1) notes that registration is not needed
+  when the exposures show the same histogram of radiance, which is what
+  ``grossberg_nayar2003`` uses.  A merge of misregistered exposures is misaligned whatever the
+  response, so here the response is judged by ``response_rmse`` and by the merge of the
+  *registered* bracket (the common crop, same camera) with the response calibrated on the
+  shifted one; everything is scored on the common crop;
+* ``global+rough_times0.07``: the noise-free bracket, exposed for the true times ``t_k
+  exp(N(0, 0.07^2))`` (about 7 % error, :class:`pbrbench.camera.Camera` ``exposure_error``)
+  while every method, the merge and the floor are given the stated ``t_k``; the truth is the
+  radiance the true times exposed.  Only ``mitsunaga1999`` re-estimates the ratios (its merge
+  uses its own times).  The scores remove one global scale, not an exponent: the response and
+  ratios are ambiguous up to ``f^{-1} -> (f^{-1})^gamma, t -> t^gamma`` when the ratios are
+  re-estimated, and Mitsunaga-Nayar fix ``gamma`` by keeping the stated span ``t_0 / t_{K-1}``,
+  so an error in that span shows in their score as a wrong exponent (as it would in use);
+  the other methods trust every stated ratio.
 
 Algorithms (from the registry), each called as ``fn(images, exposure_times)`` (and ``seed=`` when
 it takes one) returning a :class:`~pbrbench.infer.hdr.CameraResponse`, which the task merges with
@@ -54,14 +73,18 @@ from pbrbench.tasks.common.scoring import (
 SCENES = ("hdr_scene",)
 RESPONSE = "film"
 BIT_DEPTH = 8
-CONDITIONS = ("global+noise0", "global+readnoise0.002", "global+3x3stops", "global+clipped")
+ROUGH_TIMES = 0.07   # standard deviation of ln(true / stated exposure time), global+rough_times0.07
+SHIFT = 3            # largest offset (pixels, in x and in y) of an exposure, global+unregistered
+CONDITIONS = ("global+noise0", "global+readnoise0.002", "global+3x3stops", "global+clipped",
+              "global+unregistered", f"global+rough_times{ROUGH_TIMES:g}")
 
 
 def camera_setup(condition: str, radiance: np.ndarray) -> tuple[Camera, np.ndarray]:
     """The simulated camera and exposure times of a condition (see the module docstring)."""
     _, mods = parse_condition(condition)
     read = mods.get("readnoise", 0.0)
-    cam = Camera(RESPONSE, bit_depth=BIT_DEPTH, read_noise=read, full_well=1e4 if read > 0 else None)
+    cam = Camera(RESPONSE, bit_depth=BIT_DEPTH, read_noise=read, full_well=1e4 if read > 0 else None,
+                 exposure_error=mods.get("rough_times", 0.0))
     if "3x3stops" in mods:
         times = bracket_exposure_times(radiance, stops=3.0, count=3)
     elif "clipped" in mods:
@@ -69,6 +92,51 @@ def camera_setup(condition: str, radiance: np.ndarray) -> tuple[Camera, np.ndarr
     else:
         times = bracket_exposure_times(radiance, stops=1.0)
     return cam, times
+
+
+def unregistered_bracket(cam: Camera, radiance: np.ndarray, exposure_times, offsets, *, shift: int = SHIFT,
+                         seed: int = 0):
+    """The registered bracket of the common crop and the same exposures captured unregistered.
+
+    Parameters
+    ----------
+    cam : Camera
+    radiance : (H, W, C) array
+        Linear radiance, larger than ``2 shift`` in both directions.
+    exposure_times : (K,) array, ascending
+    offsets : (K, 2) int array
+        Per exposure ``(dy, dx)``, each in ``[-shift, shift]``.
+    shift : int
+        The margin: the common crop is ``radiance[shift:H - shift, shift:W - shift]``.
+    seed : int
+        The registered capture's seed; exposure ``k`` of the unregistered one uses ``seed + k``.
+
+    Returns
+    -------
+    common : (H - 2 shift, W - 2 shift, C) array
+        The common crop (the truth both brackets are scored on).
+    registered : :class:`pbrbench.camera.Bracket`
+        The bracket of the common crop.
+    images : (K, H - 2 shift, W - 2 shift, C) array
+        Exposure ``k`` captured from ``radiance[shift + dy:H - shift + dy, shift + dx:W - shift + dx]``:
+        pixel ``(i, j)`` of exposure ``k`` sees the scene point that pixel ``(i + dy, j + dx)``
+        of the common crop sees.
+    """
+    rad = np.asarray(radiance, np.float64)
+    H, W = rad.shape[:2]
+    off = np.asarray(offsets, int).reshape(-1, 2)
+    t = np.sort(np.asarray(exposure_times, float).ravel())
+    if off.shape[0] != t.size or np.abs(off).max(initial=0) > shift:
+        raise ValueError(f"offsets: need {t.size} (dy, dx) pairs within +-{shift}, got {off.tolist()}")
+    if H <= 2 * shift or W <= 2 * shift:
+        raise ValueError(f"radiance: {H}x{W} pixels leave no common crop for shifts of {shift}")
+    common = rad[shift:H - shift, shift:W - shift]
+    registered = cam.capture(common, t, seed=seed)
+    images = np.empty_like(registered.images)
+    for k, (dy, dx) in enumerate(off):
+        crop = rad[shift + dy:H - shift + dy, shift + dx:W - shift + dx]
+        images[k] = cam.capture(crop, t[k:k + 1], seed=seed + k).images[0]
+    return common, registered, images
 
 
 def ignore_response(images, exposure_times):
@@ -109,8 +177,8 @@ def _check_response(out, channels: int):
 
 class HDRTask(Task):
     name = "hdr"
-    description = ("Radiometric calibration (Debevec–Malik 1997, Robertson 2003, Mitsunaga–Nayar 1999) "
-                   "and HDR merging of a simulated camera's bracket of a rendered scene.")
+    description = ("Radiometric calibration (Debevec–Malik 1997, Robertson 2003, Mitsunaga–Nayar 1999, "
+                   "Grossberg–Nayar 2003) and HDR merging of a simulated camera's bracket of a rendered scene.")
     conditions = CONDITIONS
     headline_metric = "log2_rmse"
     families = SCENES
@@ -158,7 +226,7 @@ class HDRTask(Task):
         if "radiance" not in files or "response" in files:
             return None
         gt = gts[job.scene]
-        rad, mask, _, domain, coverage = self._bracket(job, gt, seed)
+        rad, mask, _, domain, coverage, _ = self._bracket(job, gt, seed)
         book = ScoreBook(job, scene_hash(gt), [algorithm])
         res = JobResult(job)
         try:
@@ -182,29 +250,41 @@ class HDRTask(Task):
     @staticmethod
     def _bracket(job: Job, gt, seed: int):
         """(radiance, its positive pixels, the simulated bracket, the pixels it measures (in every
-        channel some exposure neither black nor saturated), their fraction)."""
+        channel some exposure neither black nor saturated), their fraction, the images calibration
+        is given).  Under ``unregistered`` the radiance is the common crop, the bracket its
+        registered one and the images the shifted exposures (:func:`unregistered_bracket`)."""
         rad = np.maximum(np.asarray(gt["radiance"], np.float64), 0.0)
-        mask = np.all(rad > 0, axis=-1)
-        cam, times = camera_setup(job.condition, rad[mask])
-        cap_seed = int(job_rng(job, seed).integers(0, 2 ** 31 - 1))
-        br = cam.capture(rad, times, seed=cap_seed)
+        _, mods = parse_condition(job.condition)
+        rng = job_rng(job, seed)
+        cap_seed = int(rng.integers(0, 2 ** 31 - 1))
+        if "unregistered" in mods:
+            inner = rad[SHIFT:rad.shape[0] - SHIFT, SHIFT:rad.shape[1] - SHIFT]
+            cam, times = camera_setup(job.condition, inner[np.all(inner > 0, axis=-1)])
+            offsets = rng.integers(-SHIFT, SHIFT + 1, (len(times), 2))
+            rad, br, images = unregistered_bracket(cam, rad, times, offsets, shift=SHIFT, seed=cap_seed)
+            mask = np.all(rad > 0, axis=-1)
+        else:
+            mask = np.all(rad > 0, axis=-1)
+            cam, times = camera_setup(job.condition, rad[mask])
+            br = cam.capture(rad, times, seed=cap_seed)
+            images = br.images
         top = br.levels - 1
         measured = np.all(np.any((br.images > 0) & (br.images < top), axis=0), axis=-1)
         domain = mask & measured
-        return rad, mask, br, domain, float(domain.sum() / max(mask.sum(), 1))
+        return rad, mask, br, domain, float(domain.sum() / max(mask.sum(), 1)), images
 
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         from pbrbench.infer.hdr import merge_hdr
 
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        rad, mask, br, domain, coverage = self._bracket(job, gt, seed)
+        rad, mask, br, domain, coverage, images = self._bracket(job, gt, seed)
         times = br.exposure_times
         book = ScoreBook(job, scene_hash(gt), algorithms)
         res = JobResult(job)
         res.images["linear:truth (radiance)"] = display(rad)
         k_mid = len(times) // 2
-        res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = display(br.images[k_mid].astype(float) / (br.levels - 1))
+        res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = display(images[k_mid].astype(float) / (br.levels - 1))
         res.images["pixels no exposure measures (white)"] = display((mask & ~domain).astype(float))
         levels = np.arange(br.levels)
         curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
@@ -214,7 +294,7 @@ class HDRTask(Task):
             if "seed" in method_options(alg.fn) and "seed" not in alg.options:
                 kw["seed"] = seed
             with Timer() as t:
-                resp, _, err = call(alg, br.images, br.exposure_times, quality=quality,
+                resp, _, err = call(alg, images, br.exposure_times, quality=quality,
                                       check=lambda o: _check_response(o, rad.shape[-1]), **kw)
                 if err is None:
                     tt = resp.exposure_times if getattr(resp, "exposure_times", None) is not None else br.exposure_times
