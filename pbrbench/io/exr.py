@@ -211,7 +211,7 @@ def read_exr_image(path: str | os.PathLike) -> np.ndarray:
         several layers (a pbrbench ground truth: read it with :func:`read_exr`).
     """
     h, w, c = exr_shape(path)
-    check_size(path, (h, w, c), 4)
+    check_size(path, (h, w, c), 4, MAX_IMAGE_BYTES)
     chans = _read_channels(path, limit=MAX_IMAGE_BYTES)
     layers = {n.rsplit(".", 1)[0] if "." in n else "" for n in chans}
     if len(layers) > 1:

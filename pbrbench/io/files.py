@@ -150,17 +150,22 @@ def quiet_output():
     except (OSError, ValueError, AttributeError):
         yield held
         return
+    import io
+
+    py_out, py_err = io.StringIO(), io.StringIO()     # what bindings print through Python's streams
     with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
         os.dup2(out.fileno(), 1)
         os.dup2(err.fileno(), 2)
         try:
-            yield held
+            with contextlib.redirect_stdout(py_out), contextlib.redirect_stderr(py_err):
+                yield held
         finally:
             for fd, s in saved.items():
                 os.dup2(s, fd)
                 os.close(s)
             for f in (err, out):
                 f.seek(0)
-                text = f.read(4000).decode("utf-8", "replace").strip()
+                texts = [f.read(4000).decode("utf-8", "replace")] + [py_err.getvalue() if f is err else py_out.getvalue()]
+                text = "\n".join(t.strip() for t in texts if t.strip())
                 if text and not held:
                     held.append(" ".join(text.splitlines()[0].split()))
