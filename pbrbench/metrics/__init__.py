@@ -30,6 +30,7 @@ from pbrbench.metrics.normals import (
     height_rmse,
     height_rmse_scaled,
 )
+from pbrbench.metrics.ps_checks import check_error_correlation, check_maps, check_scores
 from pbrbench.metrics.sfs import (
     ambiguity_aware_scores,
     flat_baseline,
@@ -49,10 +50,10 @@ from pbrbench.metrics.table import STATUS, Metric, merge
 
 
 def _tables():
-    from pbrbench.metrics import hdr, interreflection, lightness, normals, sfs, specular
+    from pbrbench.metrics import hdr, interreflection, lightness, normals, ps_checks, sfs, specular
 
     return merge(STATUS, normals.METRICS, sfs.METRICS, lightness.METRICS, hdr.METRICS, specular.METRICS,
-                 interreflection.METRICS)
+                 interreflection.METRICS, ps_checks.METRICS)
 
 
 METRICS: dict[str, Metric] = _tables()
@@ -69,7 +70,7 @@ def metric(name: str) -> Metric:
 __all__ = [
     "METRICS", "Metric", "metric", "specular_scores",
     "albedo_abs_error", "albedo_relative_error", "ambiguity_aware_scores", "angular_error_map",
-    "angular_error_stats", "chromaticity_error", "delta_e2000", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
+    "angular_error_stats", "check_error_correlation", "check_maps", "check_scores", "chromaticity_error", "delta_e2000", "flat_baseline", "floor_height", "floor_scores", "hdr_scores",
     "height_errors", "height_rmse", "height_rmse_scaled", "intrinsic_lmse", "invalid_fraction",
     "lmse", "lmse_map", "log_radiance_rmse", "log_radiance_rmse_extremes", "mask_iou",
     "normal_angle", "radiosity_scores", "ratio_errors", "removal_errors", "response_rmse", "sfs_scores", "si_mse",
