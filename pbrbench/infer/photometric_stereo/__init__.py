@@ -42,8 +42,12 @@ from pbrbench.infer.photometric_stereo._common import DOCS, PhotometricStereoRes
 from pbrbench.infer.photometric_stereo.baselines import BASELINES, photometric_stereo_naive_lstsq
 from pbrbench.infer.photometric_stereo.ikehata2012 import photometric_stereo_ikehata2012_l1
 from pbrbench.infer.photometric_stereo.ikehata2012_sbl import photometric_stereo_ikehata2012_sbl
+from pbrbench.infer.photometric_stereo.iwahori1990 import photometric_stereo_iwahori1990
 from pbrbench.infer.photometric_stereo.nayar1991 import photometric_stereo_nayar1991
 from pbrbench.infer.photometric_stereo.woodham1980 import photometric_stereo_woodham1980
+from pbrbench.infer.photometric_stereo.woodham1980_colour import (
+    photometric_stereo_woodham1980_colour,
+)
 from pbrbench.infer.photometric_stereo.wu2010 import photometric_stereo_wu2010
 
 METHODS = {
@@ -52,6 +56,8 @@ METHODS = {
     "ikehata2012_sbl": photometric_stereo_ikehata2012_sbl,
     "wu2010": photometric_stereo_wu2010,
     "nayar1991": photometric_stereo_nayar1991,
+    "woodham1980_colour": photometric_stereo_woodham1980_colour,
+    "iwahori1990": photometric_stereo_iwahori1990,
 }
 
 __all__ = ["BASELINES", "METHODS", "PhotometricStereoResult", "photometric_stereo_naive_lstsq",
