@@ -8,7 +8,31 @@ vectors of its spec (direction x irradiance, camera frame; ``docs/conventions.md
 * ``local+noise0.01``: the same plus Gaussian noise of 1 % of the stack's peak;
 * ``area``: the ``lightNN.direct`` images of the ``*_area`` twin (nearby rectangles centred on the
   nominal directions): the distant-source model is violated;
-* ``global``: the ``lightNN.radiance`` images (full interreflection): biased in concavities.
+* ``global``: the ``lightNN.radiance`` images (full interreflection): biased in concavities;
+* ``local+ambient0.1``: the ``local`` images plus the chapter's ambient term (§1.1.3, Image =
+  Diffuse + Ambient: "shadows are not black"), the **local model** of it, not a render: every
+  image of the stack gets the same constant irradiance ``A = 0.1 x mean_k E_k`` added to its
+  sources, i.e. ``I_k <- I_k + rho A / pi`` (``rho`` the albedo AOV; radiance units), unoccluded
+  and not interreflected.  It costs no render and is exactly the model the chapter writes; a
+  rendered constant environment would add occlusion and interreflection of the ambient light,
+  which the ``global`` condition already measures for the sources;
+* ``near``: the ``lightNN.direct`` images of :data:`NEAR_FAMILIES` (``ps_near``: a sphere under
+  five *point* sources at 2, 3, 5 and 10 radii from its centre: ``I_k = rho I_src N . (P_k - X)
+  / (pi |P_k - X|^3)``, §1.3.5), scored against the distant-source twin
+  ``ps_near_distant`` under ``local``: the twin's scores carry the near scene's name (as an area
+  twin counts as its base scene), so the headline's ``near`` column is ``near - local`` on matched
+  sphere sizes.  Distant-source methods get the nominal source vectors (direction from the
+  sphere's centre, irradiance ``I / d^2`` there: :func:`pbrbench.scene.geometry.light_vectors`);
+  the methods of the ``near`` interface get the source positions.  At a short-subset quality
+  only the nearest sources (2 radii) run.
+
+Calling conventions (``Algorithm.interface``, set from :data:`INTERFACES`): the main one below;
+``"colour"`` (``woodham1980_colour``): the same call with the (K, H, W, 3) colour stack (the
+channel mean is what the others get; on grey scenes the channels are equal), its per-channel
+albedo scored by its channel mean; ``"near"`` (``iwahori1990``, under ``near`` only): ``fn(images,
+positions, *, mask, intensities, pixel_size, depth0)`` with the source positions (camera frame,
+origin at the camera target), their intensities, the film's pixel size and, as the stated
+distance of the object, the mean true height of the visible surface over the mask.
 
 Algorithms (from the registry): every method of :data:`pbrbench.infer.photometric_stereo.METHODS`
 and any plugin, called as ``fn(images, lights, *, mask)`` with ``images`` (K, H, W) float64 and
@@ -33,7 +57,14 @@ unique normal; "lit" = direct shading above 5 % of the light's peak, i.e. not gr
 directions are not coplanar (three coplanar sources leave the normal undetermined).  Scores: see
 :func:`pbrbench.metrics.normals.normal_scores`, ``albedo_scores`` (the estimate times pi against
 the albedo AOV: radiance images carry ``rho E cos / pi``) and ``height_scores`` (the estimated
-normals integrated by ``lsq`` on the largest connected part of the domain).
+normals integrated by ``lsq`` on the largest connected part of the domain), and the chapter's
+self-checks (§1.3.4), which need no truth: :func:`pbrbench.metrics.ps_checks.check_scores`
+(integrability residual, relative Lambertian least-squares residual with the nominal source
+vectors, fraction with pi-scaled albedo ``pi |g| > 1``), on the domain pixels the method solved.
+Plot job ``checks`` per family (its first kept scene, the first method): the Pearson and Spearman
+correlations of each check's per-pixel map with the angular-error map under each condition the
+scene has: whether the checks predict where the normals are wrong.  Plot job ``near_sweep`` (full
+sweep only): mean angular error against the source distance (in radii) per method.
 
 For ``sphere_5lights`` under ``local`` the first method's job also draws the chapter's Figs
 1.13-1.16 (the input images, the recovered albedo and normals, a shaded view of the integrated
@@ -51,6 +82,7 @@ from __future__ import annotations
 import numpy as np
 
 from pbrbench.metrics.normals import albedo_scores, height_scores, normal_scores
+from pbrbench.metrics.ps_checks import check_error_correlation, check_scores
 from pbrbench.registry import Algorithm
 from pbrbench.scene.geometry import light_vectors
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
@@ -71,6 +103,11 @@ INVERSE_APPLIES = ("global", "local")  # the transports the methods model (not a
 INVERSE_CONDITIONS = ("global",)
 SHORT_INVERSE_CONDITIONS = ("global",)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
+AMBIENT = 0.1         # ambient irradiance of local+ambient<level>: this fraction of the sources' mean irradiance
+NEAR_FAMILIES = ("ps_near",)            # point sources; their distant twins are f"{family}_distant"
+SHORT_NEAR_FAMILIES = ("ps_near",)
+# calling conventions other than the main one, by METHODS name: (interface, conditions)
+INTERFACES = {"iwahori1990": ("near", ("near",)), "woodham1980_colour": ("colour", None)}
 
 
 def result_arrays(out, shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -137,10 +174,12 @@ class PhotometricStereoTask(Task):
     name = "photometric_stereo"
     description = ("Normals, albedo and height from K images under distant sources (Woodham 1980; "
                    "robust L1); scored on direct, area-source and full-GI renders of the scene library.")
-    conditions = ("local", f"local+noise{NOISE:g}", "area", "global")
+    conditions = ("local", f"local+noise{NOISE:g}", f"local+ambient{AMBIENT:g}", "area", "global", "near")
     headline_metric = "normal_mean_deg"
     families = FAMILIES
     short_families = ("sphere_5lights", "ps_groove")
+    near_families = NEAR_FAMILIES
+    short_near_families = SHORT_NEAR_FAMILIES
     reflex_families = REFLEX
     short_reflex_families = ("groove_reflex_parallel",)
     cost_notes = {
@@ -156,7 +195,10 @@ class PhotometricStereoTask(Task):
         from pbrbench.infer.photometric_stereo import BASELINES, METHODS
         from pbrbench.inverse import METHODS as INVERSE
 
-        out = [Algorithm(n, self.name, fn) for n, fn in METHODS.items()]
+        out = []
+        for n, fn in METHODS.items():
+            interface, conds = INTERFACES.get(n, ("", None))
+            out.append(Algorithm(n, self.name, fn, interface=interface, conditions=conds))
         out += [Algorithm(f"baseline:{n}", self.name, fn, kind="baseline") for n, fn in BASELINES.items()]
         out += [Algorithm(f"integrate:{n}", self.name, fn, kind="floor", conditions=("local",),
                           description="the true normals integrated by this method: the integration floor")
@@ -169,6 +211,20 @@ class PhotometricStereoTask(Task):
     # ------------------------------------------------------------------------------ jobs
     def _params(self, spec) -> tuple:
         return (("lights", as_param(light_vectors(spec))), ("half_width", float(spec.camera.half_width)))
+
+    @staticmethod
+    def _near_params(spec) -> tuple:
+        """The source positions (camera frame, origin at the camera target), their intensities
+        (channel mean) and the camera's distance from the target: what the ``near`` interface
+        needs besides the images."""
+        from pbrbench.scene.geometry import camera_rotation
+
+        R = camera_rotation(spec.camera)
+        t = np.asarray(spec.camera.target, float)
+        pos = [R @ (np.asarray(li.position, float) - t) for li in spec.light_set]
+        inten = [float(np.mean(li.intensity)) for li in spec.light_set]
+        dist = float(np.linalg.norm(np.asarray(spec.camera.origin, float) - t))
+        return (("positions", as_param(pos)), ("intensities", as_param(inten)), ("camera_distance", dist))
 
     def jobs(self, quality) -> list[Job]:
         out: list[Job] = []
@@ -184,19 +240,53 @@ class PhotometricStereoTask(Task):
                 p = self._params(s)
                 out.append(Job(self.name, s.name, "local", p))
                 out.append(Job(self.name, s.name, f"local+noise{NOISE:g}", p))
+                out.append(Job(self.name, s.name, f"local+ambient{AMBIENT:g}", p))
                 out.append(Job(self.name, s.name, "global", p))
                 tw = twins.get(sweep_value(s, "albedo"))
                 if tw is not None and tw.light_set:
                     out.append(Job(self.name, tw.name, "area", self._params(tw)))
+            if specs and specs[0].light_set:   # do the chapter's checks predict the error?
+                tw = twins.get(sweep_value(specs[0], "albedo"))
+                out.append(Job(self.name, specs[0].name, "local", (("plot", "checks"),) + self._params(specs[0]),
+                               extra_scenes=(tw.name,) if tw is not None and tw.light_set else ()))
             if len(specs) > 1:  # a swept family: error vs albedo (convex shapes are the control)
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "albedo_sweep"),) + self._params(specs[-1]),
                                extra_scenes=names[:-1]))
+        out += self._near_jobs(quality)
         for fam in quality.pick(self.reflex_families, self.short_reflex_families):
             specs = quality.keep(self.scenes.family(fam), extra=1)
             if len(specs) > 0:
                 names = tuple(s.name for s in specs)
                 out.append(Job(self.name, names[-1], "global", (("plot", "reflex"),), extra_scenes=names[:-1]))
+        return out
+
+    def _near_jobs(self, quality) -> list[Job]:
+        """``near`` on each kept scene of the point-source families and ``local`` on its distant
+        twin (scored under the near scene's name: the headline matches them); only the nearest
+        sources (the first sweep value) at a short-subset quality; a ``checks`` plot job on the
+        nearest, a ``near_sweep`` plot job when more than one distance is kept."""
+        out: list[Job] = []
+        for fam in quality.pick(self.near_families, self.short_near_families):
+            specs = [s for s in self.scenes.family(fam) if s.light_set]
+            twins = {s.name.replace(f"{fam}_distant", fam, 1): s for s in self.scenes.family(f"{fam}_distant")}
+            specs = specs[:1] if quality.short_subset else quality.keep(specs)
+            for s in specs:
+                p = self._params(s) + self._near_params(s)
+                out.append(Job(self.name, s.name, "near", p))
+                tw = twins.get(s.name)
+                if tw is not None and tw.light_set:
+                    out.append(Job(self.name, tw.name, "local", self._params(tw) + (("label", s.name),)))
+            if specs:
+                tw = twins.get(specs[0].name)
+                out.append(Job(self.name, specs[0].name, "near",
+                               (("plot", "checks"),) + self._params(specs[0]) + self._near_params(specs[0]),
+                               extra_scenes=(tw.name,) if tw is not None else ()))
+            if len(specs) > 1:
+                names = tuple(s.name for s in specs)
+                extra = tuple(twins[n].name for n in names if n in twins)
+                out.append(Job(self.name, names[0], "near", (("plot", "near_sweep"),),
+                               extra_scenes=names[1:] + extra))
         return out
 
     # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
@@ -240,6 +330,49 @@ class PhotometricStereoTask(Task):
     def _solve(alg, images, lights, mask, quality):
         return call(alg, images, lights, mask=mask, quality=quality,
                       check=lambda out: result_arrays(out, images.shape[1:3]))
+
+    @staticmethod
+    def _inputs(job: Job, gt, seed: int, *, colour: bool = False) -> np.ndarray:
+        """The job's image stack: (K, H, W) grey, or (K, H, W, 3) with ``colour``; the condition's
+        transport (``radiance`` under ``global``, else ``direct``), then its ambient term (the local
+        model, ``rho A / pi`` with ``A = level x mean_k E_k``), then its noise."""
+        base, mods = parse_condition(job.condition)
+        kind = "radiance" if base == "global" else "direct"
+        images = np.asarray(gt.light_stack(kind), np.float64) if colour else PhotometricStereoTask._stack(gt, kind)
+        if mods.get("ambient", 0) > 0:
+            lights = np.asarray(job.param("lights"), float)
+            irr = mods["ambient"] * float(np.mean(np.linalg.norm(lights, axis=1)))
+            alb = np.asarray(gt["albedo"], np.float64) if colour else grey(gt["albedo"])
+            m = gt.mask[..., None] if colour else gt.mask
+            images = images + np.where(m, alb, 0.0)[None] * (irr / np.pi)
+        if mods.get("noise", 0) > 0:
+            images = add_noise(images, mods["noise"], job_rng(job, seed))
+        return images
+
+    def _solve_as(self, alg, job: Job, gt, images, lights, mask, quality, seed: int):
+        """Call a main, ``colour`` or ``near`` interface algorithm with the inputs it takes:
+        ``((normals, albedo (H, W), valid), seconds, error)``."""
+        shape = images.shape[1:3]
+        if alg.interface == "colour":
+            col = self._inputs(job, gt, seed, colour=True)
+
+            def check(out):
+                a = attribute(out, "albedo", 1)
+                if a is not None and np.ndim(a) == 3 and np.shape(a)[2] == 3:
+                    n = attribute(out, "normals", 0)
+                    out = {"normals": n, "albedo": np.mean(np.asarray(a, float), axis=-1),
+                           "valid": attribute(out, "valid", 2)}
+                return result_arrays(out, shape)
+            return call(alg, col, lights, mask=mask, quality=quality, check=check)
+        if alg.interface == "near":
+            pos = np.asarray(job.param("positions"), float)
+            inten = np.asarray(job.param("intensities"), float)
+            height = float(job.param("camera_distance")) - np.asarray(gt["depth"], float)
+            depth0 = float(np.mean(height[gt.mask]))
+            px = pixel_size(job.param("half_width", 1.0), images.shape[2])
+            return call(alg, images, pos, mask=mask, intensities=inten, pixel_size=px, depth0=depth0,
+                        quality=quality, check=lambda out: result_arrays(out, shape))
+        return self._solve(alg, images, lights, mask, quality)
 
     def _inverse_applies(self, job: Job, quality) -> bool:
         """Whether the inverse-rendering methods run on this job: the highest albedo of a family
@@ -292,18 +425,19 @@ class PhotometricStereoTask(Task):
             return self._albedo_sweep(job, gts, algorithms, quality)
         if plot == "reflex":
             return self._reflex(job, gts)
+        if plot == "checks":
+            return self._checks_plot(job, gts, algorithms, quality, seed)
+        if plot == "near_sweep":
+            return self._near_sweep(job, gts, algorithms, quality)
         gt = gts[job.scene]
-        base, mods = parse_condition(job.condition)
         lights = np.asarray(job.param("lights"), float)
-        images = self._stack(gt, "radiance" if base == "global" else "direct")
-        if mods.get("noise", 0) > 0:
-            images = add_noise(images, mods["noise"], job_rng(job, seed))
+        images = self._inputs(job, gt, seed)
         domain = self._domain(gt, lights)
         n_true = gt["normals"].astype(float)
         alb_true = grey(gt["albedo"])
         z_true = -gt["depth"].astype(float)
         px = pixel_size(job.param("half_width", 1.0), images.shape[2])
-        book = ScoreBook(job, scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms, scene_label=job.param("label"))
         res = JobResult(job)
         res.images["linear:input (light 0)"] = display(images[0])
         res.images["normals: truth"] = normals_display(n_true, gt.mask)
@@ -324,7 +458,7 @@ class PhotometricStereoTask(Task):
                 if err is None:
                     out, raw = out
             else:
-                out, seconds, err = self._solve(alg, images, lights, gt.mask, quality)
+                out, seconds, err = self._solve_as(alg, job, gt, images, lights, gt.mask, quality, seed)
             if err is not None:
                 book.add(alg.name, {"failed": 1.0}, seconds)
                 res.failures[alg.name] = err
@@ -334,6 +468,7 @@ class PhotometricStereoTask(Task):
             sc.update(albedo_scores(np.pi * a, alb_true, domain & valid))
             hs, z_est = height_scores(n, z_true, domain & valid, px)
             sc.update(hs)
+            sc.update(check_scores(images, lights, n, a, domain & valid, px)[0])
             book.add(alg.name, sc, seconds)
             res.images[f"normals: {alg.name}"] = normals_display(n, valid)
             res.error_maps[f"angular error (deg): {alg.name}"] = display_map(emap)
@@ -379,6 +514,93 @@ class PhotometricStereoTask(Task):
         res.plots[f"{fam}: {alg.name} albedo error vs albedo"] = profile_plot(
             xs, {k: v for k, v in series.items() if k.startswith("albedo")}, "albedo",
             "mean |albedo_est / albedo - 1|")
+        return res
+
+    def _checks_plot(self, job: Job, gts: dict, algorithms, quality, seed: int) -> JobResult:
+        """Pearson and Spearman correlation of each check map (integrability, least-squares
+        residual, pi |g|) with the angular-error map of the first method, under each condition
+        the scene has (``local``, noise, ambient, ``global`` where the scene renders radiance,
+        ``area`` on the twin; ``near`` on a point-source scene and ``local`` on its twin)."""
+        from pbrbench.metrics.normals import angular_error_map
+
+        alg = next((a for a in algorithms if a.kind == "method" and not a.interface), None)
+        res = JobResult(job)
+        if alg is None:
+            return res
+        if job.condition == "near":
+            cases = [("near", job.scene)] + [("local", n) for n in job.extra_scenes]
+        else:
+            cases = [("local", job.scene), (f"local+noise{NOISE:g}", job.scene),
+                     (f"local+ambient{AMBIENT:g}", job.scene)]
+            cases += [("global", job.scene)] + [("area", n) for n in job.extra_scenes]
+        checks = ("integrability", "lsq residual", "pi |g|")
+        series = {}
+        for cond, name in cases:
+            g = gts[name]
+            spec_lights = job.param("lights") if name == job.scene else None
+            lights = np.asarray(spec_lights if spec_lights is not None
+                                else light_vectors(self.scenes.spec(name)), float)
+            sub = Job(job.task, name, cond, (("lights", as_param(lights)),))
+            images = self._inputs(sub, g, seed)
+            out, _, err = self._solve(alg, images, lights, g.mask, quality)
+            if err is not None:
+                continue
+            n, a, valid = out
+            dom = self._domain(g, lights) & valid
+            px = pixel_size(job.param("half_width", 1.0), images.shape[2])
+            emap = np.where(dom, angular_error_map(n, g["normals"].astype(float), dom), np.nan)
+            _, maps = check_scores(images, lights, n, a, dom, px)
+            corr = [check_error_correlation(maps[c], emap) for c in checks]
+            series[f"Pearson, {cond}"] = [c[0] for c in corr]
+            series[f"Spearman, {cond}"] = [c[1] for c in corr]
+        fam = job.scene.split("[")[0]
+        res.plots[f"{fam}: do the chapter's checks predict the angular error? ({alg.name})"] = profile_plot(
+            np.arange(len(checks)), series, "check: 0 integrability |dp/dy - dq/dx|, 1 least-squares residual, "
+            "2 pi |g|", "correlation with the angular-error map",
+            note="per-pixel correlation over the evaluation domain; 1 = the check ranks the pixels as their error does")
+        return res
+
+    def _near_sweep(self, job: Job, gts: dict, algorithms, quality) -> JobResult:
+        """Mean angular error against the distance of the point sources (in radii of the sphere)
+        for the first method and the ``near`` interface methods, with the distant twins' error
+        (the first method under ``local``) for reference."""
+        names = [job.scene] + list(job.extra_scenes)
+        near = sorted((n for n in names if "_distant" not in n), key=lambda n: -(sweep_value(n, "radius") or 0.0))
+        first = next((a for a in algorithms if a.kind == "method" and not a.interface), None)
+        algs = ([first] if first is not None else []) + [a for a in algorithms if a.interface == "near"]
+        res = JobResult(job)
+        if not algs:
+            return res
+        xs, series = [], {}
+        for name in near:
+            spec = self.scenes.spec(name)
+            radius = float(sweep_value(name, "radius") or spec.shapes[0].radius)
+            target = np.asarray(spec.camera.target, float)
+            dist = float(np.median([np.linalg.norm(np.asarray(li.position, float) - target) for li in spec.light_set]))
+            xs.append(dist / radius)
+            gt = gts[name]
+            lights = light_vectors(spec)
+            sub = Job(job.task, name, "near", self._params(spec) + self._near_params(spec))
+            images = self._inputs(sub, gt, 0)
+            domain = self._domain(gt, lights)
+            for alg in algs:
+                out, _, err = self._solve_as(alg, sub, gt, images, lights, gt.mask, quality, 0)
+                v = np.nan
+                if err is None:
+                    v = normal_scores(out[0], gt["normals"], domain, out[2])[0].get("normal_mean_deg", np.nan)
+                series.setdefault(f"{alg.name}, near", []).append(v)
+            twin = name.replace(name.split("[")[0], name.split("[")[0] + "_distant", 1)
+            if first is not None and twin in gts:
+                tl = light_vectors(self.scenes.spec(twin))
+                out, _, err = self._solve(first, self._stack(gts[twin], "direct"), tl, gts[twin].mask, quality)
+                v = np.nan
+                if err is None:
+                    v = normal_scores(out[0], gts[twin]["normals"], self._domain(gts[twin], tl), out[2])[0].get(
+                        "normal_mean_deg", np.nan)
+                series.setdefault(f"{first.name}, distant twin (local)", []).append(v)
+        fam = job.scene.split("[")[0]
+        res.plots[f"{fam}: angular error vs source distance"] = profile_plot(
+            xs, series, "source distance from the sphere's centre (radii)", "mean angular error (deg)")
         return res
 
     def _reflex(self, job: Job, gts: dict) -> JobResult:

@@ -142,7 +142,8 @@ def test_ps_jobs_pair_area_twins(tmp_path, monkeypatch):
     jobs = task.jobs(get_quality("standard"))
     conds = {(j.scene, j.condition) for j in jobs if j.param("plot") is None}
     assert ("ps_cup[albedo=0.5]", "local+noise0.01") in conds and ("ps_cup_area[albedo=0.5]", "area") in conds
-    assert len(conds) == 3 * 4
+    assert ("ps_cup[albedo=0.5]", "local+ambient0.1") in conds
+    assert len(conds) == 3 * 5
     area_job = next(j for j in jobs if j.condition == "area")
     v = np.asarray(area_job.param("lights"))
     assert np.allclose(np.linalg.norm(v, axis=1), 16.0 / 16.0)  # L A / d^2, equal for all
