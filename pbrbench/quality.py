@@ -111,6 +111,7 @@ PRESETS: dict[str, Quality] = {
         # radiosity models; a small budget for inverse rendering
         algorithm_options=_frozen({
             "sfs/horn1989": {"max_iter": 50}, "sfs/horn1989+estimated_light": {"max_iter": 50},
+            "sfs/zheng_chellappa1991": {"shape_options": {"max_iter": 50}},   # its shape step is horn1989
             "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
             "hdr/mitsunaga1999": {"degree": 5},
             # inverse rendering (one scene at draft): two levels, a few iterations, fewer samples

@@ -195,11 +195,29 @@ def _is_frontal(s) -> bool:
     return float(np.hypot(s[0], s[1])) < 1e-6
 
 
-def _finish(z, p, q, m, h, *, method, converged, n_iter, s, rho, t0, info) -> SFSResult:
+def _finish(z, p, q, m, h, *, method, converged, n_iter, s, rho, t0, info, image=None, hint: str = "") -> SFSResult:
     """The common end of every method: height ``z`` (world units) to mean zero on the mask, NaN
-    to 0, normals from ``(p, q)`` (or, when ``p`` is None, from the height's slopes)."""
+    to 0, normals from ``(p, q)`` (or, when ``p`` is None, from the height's slopes).
+
+    A flat result from an ``image`` that varies inside the mask is a failure, never a success: the
+    method returned its start (a fixed point of its iteration).  ``converged`` is then False,
+    ``info["failure"]`` says why (with ``hint``, the method's way out), and a ``RuntimeWarning``
+    is raised."""
     z = np.where(m, np.nan_to_num(z), 0.0)
     z[m] -= z[m].mean()
+    if image is not None and m.any():
+        e = np.asarray(image, float)[m]
+        flat = float(np.ptp(z[m])) <= 1e-9 * max(1.0, float(h) * max(m.shape))
+        flat &= p is None or (float(np.nanmax(np.abs(np.asarray(p)[m]), initial=0.0)) <= 1e-12
+                              and float(np.nanmax(np.abs(np.asarray(q)[m]), initial=0.0)) <= 1e-12)
+        if flat and float(np.ptp(e)) > 1e-6 * max(float(np.abs(e).max()), 1e-300):
+            msg = (f"{method}: returned a flat surface although the image varies inside the mask: its start is a "
+                   "fixed point of the iteration" + (f"; {hint}" if hint else ""))
+            info = {**info, "failure": msg}
+            converged = False
+            import warnings
+
+            warnings.warn(msg, RuntimeWarning, stacklevel=3)
     if p is None:
         p, q = gradients_from_height(z, m, pixel_size=h)
     normals = normals_from_gradients(np.nan_to_num(p), np.nan_to_num(q), m)

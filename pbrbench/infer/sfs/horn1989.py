@@ -55,6 +55,7 @@ __all__ = ["shape_from_shading_horn1989", "AUTO_CONTOUR_FRACTION"]
 # of its pixels is consistent with one (sphere 0.96, vase 0.82, a cut random surface 0.13 under
 # the oblique light of the tests)
 AUTO_CONTOUR_FRACTION = 0.6
+VIEW_LIGHT_COS = math.cos(math.radians(5.0))   # a light this close to the view direction
 
 
 def _contour_slants(E, s, mask):
@@ -113,7 +114,10 @@ def _boundary_pixels(E, s, m, boundary, theta_max):
             ok = _contour_consistent(E, s, m, bnd, theta_max=theta_max)
             # a few wrong Dirichlet slopes (tan 88 deg = 29) ruin the solve: trust the edge as a
             # contour only when most of it looks like one
-            bnd = ok if ok.sum() >= AUTO_CONTOUR_FRACTION * bnd.sum() else np.zeros_like(m)
+            # ... unless the light is along the view: then the flat start is a fixed point of the
+            # iteration (R_p = R_q = 0) and the contour pixels that look like one are all there is
+            along_view = float(s[2]) >= VIEW_LIGHT_COS
+            bnd = ok if (ok.sum() >= AUTO_CONTOUR_FRACTION * bnd.sum() or along_view) else np.zeros_like(m)
     else:
         bnd = check_mask(boundary, m.shape, "boundary") & m if np.asarray(boundary).any() else np.zeros_like(m)
     return bnd
@@ -357,5 +361,7 @@ def shape_from_shading_horn1989(image, light, *, albedo=None, mask=None, pixel_s
         warnings.warn(f"horn1989: stopped after {n_iter} sweeps on the finest grid (max_iter={mi}) "
                       f"with RMS (p, q) update {delta:.3g} > tol={tl:g}; raise max_iter or tol",
                       RuntimeWarning, stacklevel=2)
+    hint = ("with the light along the view the flat start is stationary (R_p = R_q = 0) and only an occluding "
+            "contour starts the solve: pass boundary='occluding' or a contour mask" if not bnd.any() else "")
     return _finish(z, p, q, m, h, method="horn1989", converged=converged, n_iter=n_iter, s=s, rho=rho,
-                   t0=t0, info=info)
+                   t0=t0, info=info, image=E, hint=hint)

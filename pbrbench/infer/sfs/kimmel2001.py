@@ -339,4 +339,4 @@ def shape_from_shading_kimmel2001(image, light, *, albedo=None, mask=None, pixel
                       RuntimeWarning, stacklevel=2)
     z = zp * h
     return _finish(z, p, q, m, h, method="kimmel2001", converged=converged, n_iter=n_iter, s=s, rho=rho,
-                   t0=t0, info=info)
+                   t0=t0, info=info, image=E)

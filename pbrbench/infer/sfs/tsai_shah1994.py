@@ -217,4 +217,4 @@ def shape_from_shading_tsai_shah1994(image, light, *, albedo=None, mask=None, pi
                       f"{info['final_update']:.3g} px > tol={tl:g}; raise max_iter or tol",
                       RuntimeWarning, stacklevel=2)
     return _finish(z, None, None, m, h, method="tsai_shah1994", converged=converged, n_iter=n_iter, s=s,
-                   rho=rho, t0=t0, info=info)
+                   rho=rho, t0=t0, info=info, image=E)

@@ -82,3 +82,42 @@ def test_boundary_array_fixes_exactly_those_pixels():
 def test_option_errors(kwargs, match):
     with pytest.raises(ValueError, match=match):
         shape_from_shading_horn1989(np.full((16, 16), 0.5), [0.3, 0.0, 1.0], **kwargs)
+
+
+VIEW = np.array([0.0, 0.0, 1.0])
+
+
+def test_a_flat_start_that_never_moves_is_a_failure_not_a_success():
+    """Light along the view: the flat start is a fixed point of Horn's iteration (R_p = R_q = 0
+    there); without an occluding contour it stays flat.  That is reported: converged False, the
+    reason in info, a warning -- never converged with the start surface."""
+    s, img, h = scene("vase", 64, VIEW)
+    with pytest.warns(RuntimeWarning, match="flat surface"):
+        r = shape_from_shading_horn1989(img, VIEW, albedo=0.8, mask=s.mask, pixel_size=h, boundary="free")
+    assert not r.converged and "fixed point" in r.info["failure"] and "boundary='occluding'" in r.info["failure"]
+    assert np.ptp(r.height[s.mask]) == 0.0
+
+
+def test_auto_contour_under_a_view_light_uses_the_silhouette_even_on_a_cut_mask():
+    """A vase whose mask is cut by the image rows (less than 60 % of its edge is a contour): under
+    an oblique light the cut edge is not trusted, but under a view light the flat start would be a
+    fixed point, so the pixels that look like a contour start the solve and the result is far
+    better than flat."""
+    s, img, h = scene("vase", 64, VIEW)
+    m = s.mask.copy()
+    rows = np.where(m.any(axis=1))[0]
+    keep = (np.arange(m.shape[0]) > rows[0] + 20) & (np.arange(m.shape[0]) < rows[-1] - 20)
+    m &= keep[:, None]
+    edge = occluding_boundary(m)
+    assert edge.sum() > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        r = shape_from_shading_horn1989(img * m, VIEW, albedo=0.8, mask=m, pixel_size=h)
+        flat = shape_from_shading_horn1989(img * m, VIEW, albedo=0.8, mask=m, pixel_size=h, boundary="free")
+    assert r.info["n_boundary"] > 0 and np.ptp(r.height[m]) > 0
+    assert normal_angle(r.normals, s.normals, m) < 0.95 * normal_angle(flat.normals, s.normals, m)
+    # the whole vase, its silhouette an occluding contour: the view-light solve is far from flat
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        whole = shape_from_shading_horn1989(img, VIEW, albedo=0.8, mask=s.mask, pixel_size=h)
+    assert normal_angle(whole.normals, s.normals, s.mask) < 0.5 * normal_angle(flat.normals, s.normals, m)

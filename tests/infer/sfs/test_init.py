@@ -18,8 +18,8 @@ from tests.infer.sfs._scenes import OBLIQUE, flat_angle, scene
 
 
 def test_methods_tables_name_the_papers():
-    assert list(METHODS) == ["horn1989", "tsai_shah1994", "pentland1990", "kimmel2001"]
-    assert list(LIGHT_METHODS) == ["contour", "lee_rosenfeld1985"]
+    assert list(METHODS) == ["horn1989", "tsai_shah1994", "pentland1990", "kimmel2001", "zheng_chellappa1991"]
+    assert list(LIGHT_METHODS) == ["contour", "lee_rosenfeld1985", "zheng_chellappa1991"]
     assert all(fn.__name__ == f"shape_from_shading_{k}" for k, fn in METHODS.items())
     assert all(fn.__name__ == f"light_from_shading_{k}" for k, fn in LIGHT_METHODS.items())
 
