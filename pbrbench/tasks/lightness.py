@@ -10,7 +10,17 @@ Conditions: ``local`` = the ``direct`` render (a nearby point source, no interre
 source with the same irradiance at the centre: softer cast shadows); ``global`` = the
 ``radiance`` render (full interreflection; identical to ``local`` for a flat Mondrian up to Monte
 Carlo noise, different for the folded one and where the rod of ``mondrian_shadow`` reflects light
-onto the paper).
+onto the paper); ``local+ambient0.1`` = the ``direct`` render plus the chapter's ambient term
+(§1.1.3, *Image = Diffuse + Ambient*): a constant ambient illumination ``A`` added to the shading,
+i.e. ``rho A`` added to the image, with ``A`` = :data:`AMBIENT` (0.1) times the median direct
+shading (``direct / albedo``, per channel) over the paper's lit pixels.  It is added here, when the
+task makes the algorithm's input, not rendered: the local model's own term, exactly ``rho A``, with
+no interreflection that would come with a rendered environment (that is ``global``).  The paper's
+reflectance ratios across an edge are unchanged (``rho_1 (S + A) / rho_2 (S + A)``); what changes is
+the cast shadow of ``mondrian_shadow``: its umbra, black under ``local`` (and so outside the
+evaluation domain, which keeps only pixels of positive image), becomes ``rho A``, part of the
+domain, with a finite step ``(S + A) / A`` at its border that a retinex can read as a paint edge:
+shadows are not black (§1.1.2).  The true shading of the condition is ``S + A`` (image / albedo).
 
 Ground truth: reflectance = the albedo AOV, shading = image / albedo.  Grey scenes (albedo equal
 in every channel) are scored on the channel mean; colour scenes on RGB.
@@ -41,6 +51,7 @@ from pbrbench.tasks.common.scoring import ScoreBook, attribute, call, check_arra
 FAMILIES = ("mondrian_grey", "mondrian_colour", "mondrian_shadow", "mondrian_folded")
 MEAN_LIGHTNESS = 0.5   # the mean of the library's papers, drawn uniformly in [0.1, 0.9]
 THRESHOLD = 0.05
+AMBIENT = 0.1          # the ambient illumination of ``local+ambient``: this fraction of the median direct shading
 # configurations scored beside each method's default (method -> variant -> options)
 VARIANTS = {
     "blake1985": {
@@ -66,6 +77,36 @@ def uniform_reflectance(image, *, mask):
     refl = np.where(m, MEAN_LIGHTNESS, 0.0) * np.ones_like(image)
     shad = np.where(m, image / MEAN_LIGHTNESS, 0.0)
     return refl, shad
+
+
+def with_ambient(image: np.ndarray, albedo: np.ndarray, paper: np.ndarray, level: float) -> np.ndarray:
+    """The image plus the chapter's ambient term ``rho A`` (*Image = Diffuse + Ambient*).
+
+    Parameters
+    ----------
+    image : ndarray
+        The direct render, (H, W, 3) linear radiance.
+    albedo : ndarray
+        The albedo AOV ``rho``, (H, W, 3).
+    paper : ndarray
+        (H, W) bool: the Mondrian's pixels (albedo above zero).
+    level : float
+        ``A`` as a fraction of the median direct shading ``image / albedo`` over the paper's lit
+        pixels (per channel: the ambient light has the colour of the source).
+
+    Returns
+    -------
+    ndarray
+        ``image + albedo * A`` on the paper, ``image`` elsewhere; ``A`` is 0 where no paper pixel
+        is lit.
+    """
+    img = np.asarray(image, float)
+    alb = np.asarray(albedo, float)
+    m = paper[..., None]
+    shading = np.divide(img, alb, out=np.zeros_like(img), where=m & (alb > 0))
+    lit = paper & (shading.min(axis=-1) > 0)
+    a = level * np.median(shading[lit], axis=0) if lit.any() else np.zeros(img.shape[-1])
+    return np.where(m, img + alb * a, img)
 
 
 def patch_labels(albedo: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -94,7 +135,7 @@ class LightnessTask(Task):
     name = "lightness"
     description = ("Retinex (Land & McCann 1971; Horn 1974; Blake 1985) on rendered Mondrians: "
                    "reflectance vs the albedo AOV, with a cast shadow and a fold as the known failures.")
-    conditions = ("local", "area", "global")
+    conditions = ("local", f"local+ambient{AMBIENT:g}", "area", "global")
     headline_metric = "lmse"
     families = FAMILIES
     short_families = ("mondrian_grey", "mondrian_shadow", "mondrian_folded")
@@ -137,6 +178,7 @@ class LightnessTask(Task):
                 paper = tuple(i + 1 for i, sh in enumerate(s.shapes) if sh.material == "paper")
                 p = (("paper_ids", paper),)
                 out.append(Job(self.name, s.name, "local", p))
+                out.append(Job(self.name, s.name, f"local+ambient{AMBIENT:g}", p))
                 out.append(Job(self.name, s.name, "global", p))
                 if i < len(twins):
                     tw = twins[i]
@@ -147,13 +189,16 @@ class LightnessTask(Task):
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
-        base, _ = parse_condition(job.condition)
+        base, mods = parse_condition(job.condition)
         img = np.asarray(gt["radiance" if base == "global" else "direct"], float)
         alb = np.asarray(gt["albedo"], float)
         ids = tuple(job.param("paper_ids", ()) or ())
-        mask = gt.mask & (alb.min(axis=-1) > 0) & (img.min(axis=-1) > 0)
+        paper = gt.mask & (alb.min(axis=-1) > 0)
         if ids and "object_id" in gt:
-            mask &= np.isin(np.rint(gt["object_id"]), ids)
+            paper &= np.isin(np.rint(gt["object_id"]), ids)
+        if mods.get("ambient"):
+            img = with_ambient(img, alb, paper, mods["ambient"])
+        mask = paper & (img.min(axis=-1) > 0)
         colour = float(np.ptp(alb[mask], axis=-1).max()) > 1e-3 if mask.any() else False
         if not colour:
             img, alb = grey(img), grey(alb)

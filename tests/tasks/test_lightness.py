@@ -74,3 +74,90 @@ def test_lightness_labels():
     lab = patch_labels(a, np.array([[True, True, True], [True, True, False]]))
     assert lab[0, 0] == lab[0, 1] != lab[0, 2] and lab[1, 1] == lab[0, 2] and lab[1, 2] == -1
 
+
+
+def test_lightness_ambient_jobs_at_draft_and_standard():
+    from pbrbench.quality import get_quality
+    from pbrbench.tasks.lightness import AMBIENT, TASK
+
+    cond = f"local+ambient{AMBIENT:g}"
+    assert cond == "local+ambient0.1" and cond in TASK.conditions
+    for q in ("draft", "standard"):
+        jobs = TASK.jobs(get_quality(q))
+        local = {(j.scene, j.params) for j in jobs if j.condition == "local"}
+        ambient = {(j.scene, j.params) for j in jobs if j.condition == cond}
+        assert ambient == local and any(s == "mondrian_shadow" for s, _ in ambient), q
+
+
+def _recorder(seen):
+    from pbrbench.registry import Algorithm, Registry
+
+    def record(image, *, mask):
+        seen["image"], seen["mask"] = image.copy(), mask.copy()
+        return np.ones_like(image), image
+
+    return Registry([Algorithm("record", "lightness", record, kind="plugin")])
+
+
+def test_lightness_ambient_input_is_direct_plus_albedo_times_a():
+    """Closed form: the input is ``direct + rho A`` with ``A`` = 0.1 x the median direct shading
+    of the lit paper, and the black umbra of the cast shadow enters the domain as ``rho A``."""
+    from pbrbench.tasks.lightness import TASK
+
+    gt = mondrian_gt(shadow=True)
+    umbra = gt["unoccluded_fraction"] < 1
+    gt.arrays["direct"][umbra] = 0.0           # a point source's umbra is black under the local model
+    direct, alb = np.asarray(gt["direct"], float)[..., 0], np.asarray(gt["albedo"], float)[..., 0]
+    a = 0.1 * np.median((direct / alb)[~umbra])
+    seen_local, seen_amb = {}, {}
+    run_task(TASK, Job("lightness", "m", "local", (("paper_ids", (1,)),)), {"m": gt}, registry=_recorder(seen_local))
+    res = run_task(TASK, Job("lightness", "m", "local+ambient0.1", (("paper_ids", (1,)),)), {"m": gt},
+                   registry=_recorder(seen_amb))
+    assert not seen_local["mask"][umbra].any() and seen_local["mask"][~umbra].all()
+    assert seen_amb["mask"].all()               # shadows are not black: the umbra is part of the input
+    assert np.allclose(seen_amb["image"], direct + alb * a, rtol=1e-6)
+    assert np.allclose(seen_amb["image"][umbra], alb[umbra] * a, rtol=1e-6) and a > 0
+    # scored against the condition's own shading S + A: the recorder's reflectance 1 is off by the albedo
+    assert scores_of(res)[("record", "lmse")] > 0
+
+
+def test_lightness_ambient_puts_the_black_shadow_into_the_input_and_the_retinex_reads_it_as_paint():
+    from pbrbench.tasks.lightness import TASK
+
+    def black_umbra():
+        gt = mondrian_gt(shadow=True)
+        gt.arrays["direct"][gt["unoccluded_fraction"] < 1] = 0.0
+        return gt
+
+    job = {c: Job("lightness", "m", c, (("paper_ids", (1,)),)) for c in ("local", "local+ambient0.1")}
+    flat = {c: scores_of(run_task(TASK, j, {"m": mondrian_gt()})) for c, j in job.items()}
+    shadow = {c: scores_of(run_task(TASK, j, {"m": black_umbra()})) for c, j in job.items()}
+    # a flat Mondrian: rho (S + A) keeps every ratio across a paint edge; only the smooth shading flattens
+    assert flat["local+ambient0.1"][("blake1985", "lmse")] == pytest.approx(flat["local"][("blake1985", "lmse")],
+                                                                             rel=0.3)
+    # the umbra, outside the domain while black, enters it with a step (S + A) / A = 11 taken for paint
+    for alg in ("blake1985", "grosse2009"):
+        assert shadow["local+ambient0.1"][(alg, "lmse")] > 2 * shadow["local"][(alg, "lmse")], alg
+
+
+def test_a_draft_run_of_lightness_scores_the_ambient_condition_with_an_uncertainty(tmp_path):
+    from pbrbench.bench.run import RunConfig, run_benchmark
+    from pbrbench.report.html import headline_tables
+    from pbrbench.tasks.lightness import TASK
+    from tests.fakes import FakeSource, settings_for, with_groups
+
+    class MondrianSource(FakeSource):
+        def load(self, spec):
+            gt = with_groups(mondrian_gt(shadow="shadow" in spec.name), 0.01, seed=len(spec.name))
+            gt.meta["scene_hash"] = spec.content_hash()
+            return gt
+
+    o = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path), tasks={"lightness": TASK},
+                      source=MondrianSource(tmp_path / "cache"), log=lambda m: None)
+    assert not o.errors
+    amb = [s for s in o.scores if s["condition"] == "local+ambient0.1" and s["metric"] == "lmse"]
+    assert {s["scene"] for s in amb} == {"mondrian_grey", "mondrian_shadow", "mondrian_folded"}
+    (h,) = headline_tables(o.scores, o.task_info)
+    col = h["conditions"].index("local+ambient0.1 − local")
+    cell = next(r for r in h["rows"] if r["algorithm"] == "blake1985")["cells"][col]
+    assert cell["n"] == 3 and np.isfinite(cell["value"]) and np.isfinite(cell["se"]) and " ± " in cell["text"]
