@@ -11,10 +11,20 @@ bounces and converged (``radiosity:1``, ``radiosity:2``, ``radiosity:4``, ``radi
 one memoised solution per scene (:mod:`pbrbench.radiosity.forward_models`; ``cells`` patches across
 the view: 16, 8 in a draft run).
 
-Conditions: ``global`` -- the prediction against the path tracer's full radiance (the reference
-condition: what a camera sees); ``local`` -- against its direct light alone (where the local model
-is right by construction: its error there is the models' own discretisation, and the radiosity
-models' excess is the interreflected light they add).  Scores
+Conditions: ``local`` -- the prediction against the path tracer's direct light alone (the
+reference condition, as in every task: the light transport the local shading model assumes; the
+local model is right there by construction, so its error is the models' own discretisation, and
+the radiosity models' excess is the interreflected light they add); ``global`` -- against its full
+radiance (what a camera sees).  The headline's effect column is therefore ``global − local``, the
+cost of interreflection with every task's sign: positive where a model gets worse when the light
+it is judged against includes interreflection (the local model, which ignores it), negative where
+it gets better (the radiosity models, which add it).  Beside it, ``headline_values``: the error
+under ``global`` itself, each model's error against what the camera sees.
+
+Scene classes (:meth:`InterreflectionTask.scene_class`; the headline gives each its own mean ± SE,
+since a mean over a white room and a black one says nothing about either): the white room, the
+black room, the grooves at each albedo (both groove families), the concave cap at each albedo, the
+bump, and the colour-bleeding scene.  Scores
 (:mod:`pbrbench.metrics.interreflection`) over the visible surface (:func:`pbrbench.tasks.common.inputs.visible_surface`): ``radiosity_rel_error`` (the headline), ``radiosity_rel_rmse``, ``radiosity_abs_bias``,
 ``chromaticity_error`` and ``delta_e2000`` (CIEDE2000, through colour-science).
 
@@ -41,6 +51,9 @@ GROOVES = ("groove_reflex_parallel", "groove_reflex_bisector")
 FAMILIES = GROOVES + ("room_black", "room_white", "cylinder_bump", "ps_cap", "colour_bleeding")
 SHADOWS = ("shadow_near", "shadow_far", "shadow_small")
 CONDITIONS = ("global", "local")
+# the headline's scene classes of the families that are not swept (grooves and cap: one class per albedo)
+SCENE_CLASSES = {"room_white": "white room", "room_black": "black room", "cylinder_bump": "bump",
+                 "colour_bleeding": "colour bleeding"}
 
 
 
@@ -62,13 +75,18 @@ class InterreflectionTask(Task):
     headline_metric = "radiosity_rel_error"
     families = FAMILIES
     short_families = FAMILIES
-    reference_condition = "global"
-    notes = ("Columns: global = each model's prediction against the path tracer's full radiance (what the camera "
-             "sees: the reference); local = against the path tracer's direct light only, where the local model "
-             "is right by construction (its error there is the models' own discretisation: piecewise-constant "
-             "patches, sampled shadows) and the radiosity models' error is the interreflected light they add. "
-             "The local model (a baseline) fails where surfaces see each other brightly (white room, grooves and "
-             "cap at high albedo, the bump's shadow) and holds where they are dark (black room, albedo 0.1); "
+    reference_condition = "local"
+    headline_values = ("global",)   # the headline also shows each model's error against what the camera sees
+    notes = ("Columns: local (the reference, as in every task) = each model's prediction against the path tracer's "
+             "direct light only, where the local model is right by construction (its error there is the models' own "
+             "discretisation: piecewise-constant patches, sampled shadows) and the radiosity models' error is the "
+             "interreflected light they add; global − local = the cost of interreflection: the change of the error "
+             "when the prediction is judged against the full radiance (what the camera sees) instead, positive = "
+             "worse (the local model, which ignores interreflection), negative = better (the radiosity models, "
+             "which add it); global = the error against what the camera sees (the sum of the two). One row "
+             "group per scene class (white room, black room, grooves and cap at each albedo, bump, colour "
+             "bleeding): the local model fails where surfaces see each other brightly (white room, grooves and cap "
+             "at high albedo, the bump's shadow) and holds where they are dark (black room, albedo 0.1); "
              "radiosity:k counts k bounces. The models of a scene share one solution, whose time is charged to "
              "the first model called. Export/evaluate: not supported (the models take the scene description).")
     cost_notes = {
@@ -76,6 +94,29 @@ class InterreflectionTask(Task):
                  "rays and the radiosity solution every model of the scene reads (one memoised solve per scene); "
                  "the local model itself is the direct term",
     }
+
+    def scene_class(self, scene: str) -> str | None:
+        """The class of a scene in the headline (its own row group, mean ± SE over its scenes).
+
+        Parameters
+        ----------
+        scene : str
+            A score's scene name (``room_white``, ``groove_reflex_parallel[albedo=0.9]``, ...).
+
+        Returns
+        -------
+        str or None
+            ``white room``, ``black room``, ``grooves, albedo <a>`` (both groove families),
+            ``concave cap, albedo <a>``, ``bump``, ``colour bleeding``; None for a scene of no
+            family of the task.
+        """
+        fam = scene.split("[", 1)[0]
+        albedo = sweep_value(scene, "albedo")
+        if fam in GROOVES:
+            return f"grooves, albedo {albedo:g}" if albedo is not None else "grooves"
+        if fam == "ps_cap":
+            return f"concave cap, albedo {albedo:g}" if albedo is not None else "concave cap"
+        return SCENE_CLASSES.get(fam)
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:

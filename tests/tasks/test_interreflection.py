@@ -88,4 +88,22 @@ def test_jobs_skip_black_scenes_and_draw_every_gallery_figure():
     assert not any("albedo=0]" in j.scene for j in jobs)
     plots = {j.param("plot") for j in jobs} - {None}
     assert plots == {"groove", "rooms", "bump", "bleeding", "shadows"}
-    assert TASK.reference_condition == "global" and "local" in TASK.notes
+    # local is the reference, as in every task: the cost of interreflection is global - local
+    assert TASK.reference_condition == "local" and "global − local" in TASK.notes
+    assert TASK.headline_values == ("global",)
+
+
+def test_every_scored_scene_has_a_class_and_grooves_share_one_per_albedo():
+    from pbrbench.quality import get_quality
+
+    for q in ("draft", "standard"):
+        scenes = {j.scene for j in TASK.jobs(get_quality(q)) if j.param("plot") is None}
+        classes = {s: TASK.scene_class(s) for s in scenes}
+        assert None not in classes.values(), q
+        assert classes["room_white"] == "white room" and classes["room_black"] == "black room"
+        grooves = {c for s, c in classes.items() if s.startswith("groove_")}
+        albedos = {s.split("=")[1] for s in scenes if s.startswith("groove_")}
+        assert grooves == {f"grooves, albedo {a[:-1]}" for a in albedos} and len(grooves) >= 2, q
+        assert classes["ps_cap[albedo=0.9]"] == "concave cap, albedo 0.9"
+    assert TASK.scene_class("room_white") != TASK.scene_class("room_black")
+    assert TASK.scene_class("shadow_near") is None
