@@ -23,6 +23,12 @@ and the cost of each effect, with standard errors.
   convex scenes (tag ``convex``: no part can see another) and scenes with concavities (tag
   ``concave``), its cost is also given for each group: interreflection can only cost something
   where the surface sees itself.
+* **Scene classes.** A task whose scenes fall into classes that a single mean would blur (the
+  interreflection task: a white room and a black room, grooves at each albedo, ...) gets one row
+  group per class (``classes``: scene -> class), each cell the mean ± SE over that class's
+  matched scenes alone; such a table has no convex / concave split.  A task may also show a
+  condition's own mean beside its cost (``values``: interreflection's error against what the
+  camera sees).
 
 Only the stored scores are read; nothing is recomputed.
 """
@@ -86,14 +92,42 @@ def difference(others: list[dict], bases: list[dict]) -> dict:
                 unstable=any(s.get("unstable") for s in [*others, *bases]))
 
 
-def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None) -> list[dict]:
-    """Per task: ``{"task", "metric", "better", "unit", "reference", "columns", "rows",
-    "noise_floor", "partial"}``; ``rows``: ``[{"algorithm", "cells": [cell per column]}]``;
-    ``partial``: algorithms with no score under the reference (run on a subset of scenes and
-    conditions), each condition's mean ``beside`` every algorithm scored on all the same scenes
-    (``[{"algorithm", "condition", "scenes", "value", "se", "n", "beside": [...]}]``); ``geometry``:
-    scene -> "convex" / "concave" (from the scene files' tags)."""
+def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None,
+                  layout: dict | None = None) -> list[dict]:
+    """The headline's effect table of each task.
+
+    Parameters
+    ----------
+    scores : list of dict
+        The run's stored scores.
+    info : dict
+        task -> the stored task information (``headline_metric``, ``conditions``,
+        ``reference_condition``, ``algorithms``, ``description``, ``notes``).
+    geometry : dict, optional
+        scene -> ``"convex"`` / ``"concave"`` (from the scene files' tags).
+    layout : dict, optional
+        task -> ``{"scene_class": fn, "values": conditions}``, both optional: ``fn`` maps a
+        scene name to ``(sort key, class label)``, or None for a scene of no class, and that
+        task's rows are grouped by class (groups in the order of the smallest sort key of their
+        scenes, then by label; scenes of no class last, as ``other scenes``); ``values`` are
+        conditions whose mean itself (not its cost) is also a column, after the costs, over the
+        same matched scenes as the cost.
+
+    Returns
+    -------
+    list of dict
+        Per task ``{"task", "metric", "better", "unit", "reference", "columns", "rows", "groups",
+        "noise_floor", "description", "notes", "partial"}``: ``rows`` ``[{"algorithm", "group",
+        "cells": [cell per column]}]`` (``group`` the class label, None without classes; a cell
+        also lists the ``scenes`` of its scores; a column ``{"label", "condition", "group",
+        "effect", "value"}``, ``value`` True for a column of a condition's own mean); ``groups`` ``[{"label", "scenes"}]`` in row
+        order (empty without classes); ``partial`` the algorithms with no score under the
+        reference (run on a subset of scenes and conditions), each condition's mean ``beside``
+        every algorithm scored on all the same scenes (``[{"algorithm", "condition", "scenes",
+        "value", "se", "n", "beside": [...]}]``).
+    """
     geometry = geometry or {}
+    layout = layout or {}
     by_task = defaultdict(list)
     for s in scores:
         by_task[s["task"]].append(s)
@@ -116,49 +150,84 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
         at = defaultdict(dict)   # (algorithm, condition) -> match key -> score
         for s in rows:
             at[(s["algorithm"], s["condition"])][match_key(s["scene"])] = s
-        columns = [{"label": ref, "condition": ref, "group": None, "effect": False}]
+        classify = layout.get(task, {}).get("scene_class")
+        columns = [{"label": ref, "condition": ref, "group": None, "effect": False, "value": False}]
         for c in conds:
             keys = set().union(*(at[(a, c)].keys() & at[(a, ref)].keys() for a in algs))
             groups = sorted({geometry.get(base_scene(k), "") for k in keys} - {""})
-            columns.append({"label": f"{c} − {ref}", "condition": c, "group": None, "effect": True})
-            if len(groups) > 1 and c.split("+")[0] in SPLIT_BASES and ref.split("+")[0] not in SPLIT_BASES:
-                columns += [{"label": f"{c} − {ref} ({g})", "condition": c, "group": g, "effect": True} for g in groups]
+            columns.append({"label": f"{c} − {ref}", "condition": c, "group": None, "effect": True, "value": False})
+            if classify is None and len(groups) > 1 and c.split("+")[0] in SPLIT_BASES \
+                    and ref.split("+")[0] not in SPLIT_BASES:
+                columns += [{"label": f"{c} − {ref} ({g})", "condition": c, "group": g, "effect": True, "value": False}
+                            for g in groups]
+        columns += [{"label": c, "condition": c, "group": None, "effect": False, "value": True}
+                    for c in layout.get(task, {}).get("values", ()) if c in conds]
+        all_keys = sorted({match_key(s["scene"]) for s in rows})
+        if classify is None:
+            row_groups = [(None, all_keys)]
+        else:
+            found, rank = defaultdict(list), {}   # label -> match keys; label -> its smallest sort key
+            for k in all_keys:
+                c = classify(base_scene(k))
+                label = c[1] if c else None
+                found[label].append(k)
+                if c:
+                    rank[label] = min(rank.get(label, c[0]), c[0])
+            row_groups = [(label or "other scenes", found[label])
+                          for label in sorted(found, key=lambda g: (g is None, (rank[g], g) if g else ()))]
         table, partial = [], []
         for a in algs:
-            base = at[(a, ref)]
-            if not base:   # run on a subset only (e.g. an expensive method): beside the others on its scenes
-                for c in conds:
-                    mine = at[(a, c)]
-                    if not mine:
+            if not at[(a, ref)]:   # run on a subset only (e.g. an expensive method): beside the others on its scenes
+                partial += _beside(a, conds, algs, at)
+        for label, group_keys in row_groups:
+            for a in algs:
+                base = {k: v for k, v in at[(a, ref)].items() if k in group_keys}
+                if not at[(a, ref)] or not base:
+                    continue
+                cells = []
+                for col in columns:
+                    if not col["effect"] and not col["value"]:
+                        cells.append(dict(summary(list(base.values())), scenes=[v["scene"] for v in base.values()]))
                         continue
-                    keys = sorted(mine)
-                    beside = []
-                    for b in algs:
-                        theirs = at[(b, c)]
-                        if b != a and all(k in theirs for k in keys):
-                            beside.append({"algorithm": b, **summary([theirs[k] for k in keys])})
-                    partial.append({"algorithm": a, "condition": c, "scenes": keys,
-                                    **summary([mine[k] for k in keys]), "beside": beside})
-                continue
-            cells = []
-            for col in columns:
-                if not col["effect"]:
-                    cells.append(summary(list(base.values())))
-                    continue
-                other = at[(a, col["condition"])]
-                keys = sorted(k for k in other.keys() & base.keys()
-                              if col["group"] is None or geometry.get(base_scene(k)) == col["group"])
-                if not keys:
-                    cells.append(None)
-                    continue
-                cells.append(difference([other[k] for k in keys], [base[k] for k in keys]))
-            table.append({"algorithm": a, "cells": cells})
+                    other = at[(a, col["condition"])]
+                    keys = sorted(k for k in other.keys() & base.keys()
+                                  if col["group"] is None or geometry.get(base_scene(k)) == col["group"])
+                    if not keys:
+                        cells.append(None)
+                        continue
+                    if col["value"]:
+                        cells.append(dict(summary([other[k] for k in keys]), scenes=[other[k]["scene"] for k in keys]))
+                        continue
+                    cells.append(dict(difference([other[k] for k in keys], [base[k] for k in keys]),
+                                      scenes=[other[k]["scene"] for k in keys]))
+                table.append({"algorithm": a, "group": label, "cells": cells})
         ses = sorted(s["uncertainty"] for s in rows if s["condition"] == ref and finite(s.get("uncertainty")))
         floor = ses[len(ses) // 2] if ses else float("nan")
+        groups = [{"label": label, "scenes": keys} for label, keys in row_groups
+                  if label is not None and any(r["group"] == label for r in table)]
         out.append({"task": task, "metric": metric, "better": rows[0].get("better", "lower"),
                     "unit": rows[0].get("unit", ""), "reference": ref, "columns": columns, "rows": table,
-                    "noise_floor": floor, "description": ti.get("description", ""), "notes": ti.get("notes", ""),
-                    "partial": partial})
+                    "groups": groups, "noise_floor": floor, "description": ti.get("description", ""),
+                    "notes": ti.get("notes", ""), "partial": partial})
+    return out
+
+
+def _beside(a: str, conds: list[str], algs: list[str], at: dict) -> list[dict]:
+    """The lines of an algorithm with no reference score: per condition its mean over its scenes,
+    beside every other algorithm scored on all of them."""
+    out = []
+    for c in conds:
+        mine = at[(a, c)]
+        if not mine:
+            continue
+        keys = sorted(mine)
+        beside = []
+        for b in algs:
+            theirs = at[(b, c)]
+            if b != a and all(k in theirs for k in keys):
+                beside.append({"algorithm": b, **summary([theirs[k] for k in keys])})
+        out.append({"algorithm": a, "condition": c, "scenes": keys, **summary([mine[k] for k in keys]),
+                    "beside": beside})
     return out
 
 

@@ -62,31 +62,77 @@ def _colour(value, lo, hi, better, log) -> str | None:
     return f"hsl({int(round(120 * good))}, 65%, 82%)"
 
 
+def task_layout(tasks) -> dict:
+    """How the headline lays out each task of ``tasks`` (names) that asks for more than the
+    default: task -> ``{"scene_class": fn, "values": conditions}`` (see
+    :func:`pbrbench.report.effects.effect_tables`), from its task module's ``scene_class(scene)``
+    (a class label or None; :class:`pbrbench.tasks.interreflection.InterreflectionTask`) and
+    ``headline_values`` (conditions whose own mean is also shown).  A class's sort key is its
+    scene's family's place in the task's families (a class spanning several families sorts with
+    its first).  A task that is not a module of :mod:`pbrbench.tasks` (a test's fake) has none."""
+    from pbrbench.tasks import get_tasks, task_names
+
+    known = set(task_names())
+    out = {}
+    for name in tasks:
+        task = get_tasks([name])[name] if name in known else None
+        fn = getattr(task, "scene_class", None)
+        values = tuple(getattr(task, "headline_values", ()) or ())
+        lay = {"values": values} if values else {}
+        if callable(fn):
+            families = list(task.families)
+
+            def classify(scene, fn=fn, families=families):
+                label = fn(scene)
+                if label is None:
+                    return None
+                fam = scene.split("[", 1)[0]
+                return (families.index(fam) if fam in families else len(families), label)
+
+            lay["scene_class"] = classify
+        if lay:
+            out[name] = lay
+    return out
+
+
 def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
-                    geometry: dict | None = None) -> list[dict]:
+                    geometry: dict | None = None, layout: dict | None = None) -> list[dict]:
     """Per task: the effect table of :func:`pbrbench.report.effects.effect_tables` with display
     text, colours and regression markers.  The reference column is coloured green (best) to red
-    (worst) across algorithms; an effect is red when it costs accuracy significantly, green when it
+    (worst) across algorithms, as is a column of a condition's own mean (within each row group,
+    when the task has scene classes: ``layout``, see :func:`task_layout`), unless its spread is
+    within twice its largest standard error (a difference inside the noise is not coloured); an
+    effect is red when it costs accuracy significantly, green when it
     helps, and greyed when it is inside the 95 % Student-t interval of zero; a noise-limited cell
-    (|bias| > SE) is marked ``biased``, a cell with bimodal replicates ``unstable``."""
+    (|bias| > SE) is marked ``biased``, a cell with bimodal replicates ``unstable``.  A grouped
+    cell carries the regression marker of a score of its own scenes (``marks`` keyed by
+    ``(task, algorithm, condition, scene)``: :func:`markers`)."""
     from pbrbench.report.effects import effect_tables, format_cell
 
     marks = marks or {}
     out = []
-    for t in effect_tables(scores, info, geometry):
-        ref_vals = [r["cells"][0]["value"] for r in t["rows"] if r["cells"][0] is not None]
-        finite = [v for v in ref_vals if math.isfinite(v)]
-        lo, hi = (min(finite), max(finite)) if finite else (float("nan"), float("nan"))
-        log = bool(finite) and lo > 0 and hi / lo > 10
+    for t in effect_tables(scores, info, geometry, layout):
+        ranges = {}   # (row group, column) -> (lo, hi, log scale) of the colours
+        for g in {r["group"] for r in t["rows"]}:
+            for i, col in enumerate(t["columns"]):
+                if col["effect"]:
+                    continue
+                cs = [r["cells"][i] for r in t["rows"] if r["group"] == g and r["cells"][i] is not None]
+                finite = [c["value"] for c in cs if math.isfinite(c["value"])]
+                ses = [c["se"] for c in cs if math.isfinite(c["se"])]
+                lo, hi = (min(finite), max(finite)) if finite else (float("nan"), float("nan"))
+                if finite and ses and hi - lo <= 2 * max(ses):
+                    lo = hi = float("nan")   # a spread inside the noise: not coloured
+                ranges[(g, i)] = (lo, hi, bool(finite) and lo > 0 and hi / lo > 10)
         rows = []
         for r in t["rows"]:
             cells = []
-            for col, c in zip(t["columns"], r["cells"], strict=True):
+            for i, (col, c) in enumerate(zip(t["columns"], r["cells"], strict=True)):
                 if c is None:
                     cells.append({"text": "", "value": None, "n": 0, "colour": None, "mark": None, "cls": ""})
                     continue
                 if not col["effect"]:
-                    colour = _colour(c["value"], lo, hi, t["better"], log)
+                    colour = _colour(c["value"], *ranges[(r["group"], i)][:2], t["better"], ranges[(r["group"], i)][2])
                     cls = ""
                 else:
                     worse = (c["value"] > 0) == (t["better"] == "lower")
@@ -107,9 +153,16 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                               f"error, bias-corrected value {c['corrected']:.4g}")
                 if c.get("unstable"):
                     cls = (cls + " unstable").strip()
-                cells.append({"text": format_cell(c), "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
-                              "cls": cls, "title": title, "mark": marks.get((t["task"], r["algorithm"], col["condition"]))})
-            rows.append({"algorithm": r["algorithm"], "cells": cells})
+                if r["group"] is None:
+                    mark = marks.get((t["task"], r["algorithm"], col["condition"]))
+                else:
+                    found = {marks.get((t["task"], r["algorithm"], col["condition"], s)) for s in c.get("scenes", ())}
+                    mark = "regression" if "regression" in found else "improvement" if "improvement" in found else None
+                main, _, note = format_cell(c).partition(" (")
+                cells.append({"text": format_cell(c), "main": main, "note": f"({note}" if note else "",
+                              "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
+                              "cls": cls, "title": title, "mark": mark})
+            rows.append({"algorithm": r["algorithm"], "group": r["group"], "cells": cells})
         partial = [dict(p, text=format_cell(p), beside=[dict(b, text=format_cell(b)) for b in p["beside"]])
                    for p in t["partial"]]
         out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows, partial=partial))
@@ -314,15 +367,18 @@ def geometry_of(ground_truths: list[dict]) -> dict[str, str]:
     return out
 
 
-def markers(comparison: dict | None) -> dict[tuple[str, str, str], str]:
-    """(task, algorithm, condition) -> "regression" / "improvement", from a stored comparison."""
-    out: dict[tuple[str, str, str], str] = {}
+def markers(comparison: dict | None) -> dict[tuple, str]:
+    """(task, algorithm, condition) and (task, algorithm, condition, scene) -> "regression" /
+    "improvement", from a stored comparison (a regression wins over an improvement)."""
+    out: dict[tuple, str] = {}
     if not comparison:
         return out
     for ch in comparison.get("improvements", []):
         out.setdefault((ch["task"], ch["algorithm"], ch["condition"]), "improvement")
+        out.setdefault((ch["task"], ch["algorithm"], ch["condition"], ch.get("scene")), "improvement")
     for ch in comparison.get("regressions", []):
         out[(ch["task"], ch["algorithm"], ch["condition"])] = "regression"
+        out[(ch["task"], ch["algorithm"], ch["condition"], ch.get("scene"))] = "regression"
     return out
 
 
@@ -342,7 +398,7 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
     comparison = run.get("comparison")
     marks = markers(comparison)
     gts = store.ground_truths(run_id)
-    heads = headline_tables(scores, info, marks, geometry_of(gts))
+    heads = headline_tables(scores, info, marks, geometry_of(gts), task_layout(sorted({s["task"] for s in scores})))
     tables = metric_tables(scores)
     figures = load_figures(run_dir)
     history = history_figures(store, run_id, info, run["quality"], Path(run_dir))

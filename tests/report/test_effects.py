@@ -134,3 +134,29 @@ def test_paired_jackknife_of_many_groups():
     se, dof = paired(glo, loc)
     d = [0.01, -0.01, 0.02, -0.02]
     assert dof == 3 and se == pytest.approx(math.sqrt(3 / 4 * sum(x * x for x in d)))
+
+
+def test_scene_classes_make_one_row_group_each_in_sort_order_with_values_beside_the_cost():
+    # two classes whose single mean would blur them: a bright room where the cost is large and a dark one
+    scores = [s("white", "local", 0.1), s("white", "global", 0.7), s("black", "local", 0.2),
+              s("black", "global", 0.22), s("g[a=1]", "local", 0.0), s("g[a=1]", "global", 0.3),
+              s("h[a=1]", "local", 0.0), s("h[a=1]", "global", 0.5), s("stray", "local", 1.0),
+              s("stray", "global", 1.0)]
+    labels = {"white": (2, "white room"), "black": (1, "black room"), "g[a=1]": (0, "grooves"),
+              "h[a=1]": (3, "grooves")}
+    layout = {"t": {"scene_class": labels.get, "values": ("global",)}}
+    (t,) = effect_tables(scores, INFO, geometry={"g[a=1]": "concave", "white": "convex"}, layout=layout)
+    assert [g["label"] for g in t["groups"]] == ["grooves", "black room", "white room", "other scenes"]
+    assert t["groups"][0]["scenes"] == ["g[a=1]", "h[a=1]"]   # a class spans families: sorted with its first
+    assert [c["label"] for c in t["columns"]] == ["local", "global − local", "global"]   # no geometry split
+    cells = {r["group"]: r["cells"] for r in t["rows"]}
+    assert [r["group"] for r in t["rows"]] == ["grooves", "black room", "white room", "other scenes"]
+    assert cells["white room"][1]["value"] == pytest.approx(0.6) and cells["white room"][1]["n"] == 1
+    assert cells["black room"][1]["value"] == pytest.approx(0.02)
+    assert cells["grooves"][1]["value"] == pytest.approx(0.4) and cells["grooves"][1]["n"] == 2
+    assert cells["grooves"][1]["se"] == pytest.approx(math.sqrt(2 * 0.1 ** 2 * 2) / 2)
+    assert cells["white room"][2]["value"] == pytest.approx(0.7) and not cells["white room"][2]["effect"]
+    assert cells["grooves"][1]["scenes"] == ["g[a=1]", "h[a=1]"]
+    # without a layout: one ungrouped table, as before
+    (t,) = effect_tables(scores, INFO)
+    assert t["groups"] == [] and {r["group"] for r in t["rows"]} == {None} and len(t["rows"]) == 1

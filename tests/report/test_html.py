@@ -229,3 +229,78 @@ def test_compare_html_page_lists_changes_beyond_the_noise(tmp_path, capsys):
     for href in p.anchors:
         target, _, frag = href.partition("#")
         assert (out.parent / target).is_file() if target else frag in p.ids, href
+
+
+class Groups(HTMLParser):
+    """The row groups of the headline table of one task: [(class, [(algorithm, [cell texts])])]."""
+
+    def __init__(self, task):
+        super().__init__()
+        self.task, self.groups, self._in, self._row, self._cell = task, [], False, None, None
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "table" and a.get("data-task") == self.task:
+            self._in = True
+        elif self._in and tag == "tr" and "group" in (a.get("class") or ""):
+            self.groups.append((a["data-group"], []))
+        elif self._in and tag == "tr" and "data-algorithm" in a:
+            assert a.get("data-group") == self.groups[-1][0]
+            self._row = (a["data-algorithm"], [])
+            self.groups[-1][1].append(self._row)
+        elif self._row is not None and tag == "td":
+            self._cell = []
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def handle_endtag(self, tag):
+        if tag == "td" and self._cell is not None:
+            self._row[1].append("".join(self._cell).strip())
+            self._cell = None
+        elif tag == "tr":
+            self._row = None
+        elif tag == "table":
+            self._in = False
+
+
+def test_interreflection_headline_has_a_row_group_per_scene_class_and_the_cost_sign_of_every_task(tmp_path):
+    # a synthetic stored run of the interreflection task: the local model is right against the direct
+    # light (local) and wrong against the full radiance (global) in proportion to how bright the scene is
+    from pbrbench.bench.plan import task_info
+    from pbrbench.registry import builtin_registry
+    from pbrbench.tasks.interreflection import TASK
+
+    err = {"room_white": 0.68, "room_black": 0.12, "groove_reflex_parallel[albedo=0.1]": 0.03,
+           "groove_reflex_bisector[albedo=0.1]": 0.05, "groove_reflex_parallel[albedo=0.9]": 0.4,
+           "groove_reflex_bisector[albedo=0.9]": 0.5, "ps_cap[albedo=0.9]": 0.3, "cylinder_bump": 0.05,
+           "colour_bleeding": 0.12}
+    scores = []
+    for scene, e in err.items():
+        for alg, loc, glo in (("local", 0.01, e), ("radiosity", 0.8 * e, 0.02)):
+            for cond, v in (("local", loc), ("global", glo)):
+                scores.append({"task": "interreflection", "scene": scene, "scene_hash": scene, "condition": cond,
+                               "algorithm": alg, "metric": "radiosity_rel_error", "value": v, "better": "lower",
+                               "uncertainty": 0.001, "dof": 1e9})
+    reg = builtin_registry({"interreflection": TASK})
+    with Store(tmp_path / "h.sqlite") as st:
+        run = st.create_run(quality="draft", config={"task_info": task_info({"interreflection": TASK}, reg)}, env={})
+        st.add_job_result(run, "all", "interreflection", scores)
+        st.set_status(run, "complete")
+        index = write_report(st, run, out_dir=tmp_path / "site")
+    for page in (index, index.parent / "task-interreflection.html"):
+        p = Groups("interreflection")
+        p.feed(page.read_text())
+        assert [g for g, _ in p.groups] == ["grooves, albedo 0.1", "grooves, albedo 0.9", "black room", "white room",
+                                            "bump", "concave cap, albedo 0.9", "colour bleeding"], page.name
+        rows = {(g, a): cells[1:] for g, rs in p.groups for a, cells in rs}   # cells[0]: the algorithm
+        assert all(len(cells) == 3 for cells in rows.values())   # local, global − local, global
+        # cost = condition − reference, positive = worse: the local model pays for ignoring interreflection
+        assert rows[("white room", "local")][1].startswith("+0.67 ±")
+        assert rows[("black room", "local")][1].startswith("+0.11 ±")
+        assert rows[("white room", "radiosity")][1].startswith("-0.524 ±")
+        assert rows[("grooves, albedo 0.9", "local")][1].startswith("+0.44 ±")   # mean of its two scenes
+        assert rows[("white room", "local")][2].startswith("0.68 ±")
+    html = (index.parent / "task-interreflection.html").read_text()
+    assert 'class="cost"' in html and 'class="gain"' in html and "global − local" in html
