@@ -1,6 +1,6 @@
 """``pbrbench infer``: run the inference package on your own data.
 
-* ``photometric-stereo DIR --out OUT``: DIR is a DiLiGenT-layout object folder or a folder
+* ``photometric-stereo DIR --out OUT``: DIR is a DiLiGenT- or psmImages-layout object folder or a folder
   written by ``pbrbench render --out``; writes normals (EXR + PNG), albedo, the height by
   integration, the valid mask and ``result.json`` (with the angular error when DIR has
   ground-truth normals);
@@ -38,7 +38,7 @@ def _add_problems(p):
     s = p.add_subparsers(dest="problem", metavar="PROBLEM")
     s.required = True
     s.add_parser("photometric-stereo", aliases=["photometric_stereo"],
-                 help="normals, albedo and height from a DiLiGenT-layout folder or a pbrbench render",
+                 help="normals, albedo and height from a DiLiGenT- or psmImages-layout folder or a pbrbench render",
                  fill=_add_ps_options)
     s.add_parser("retinex", aliases=["lightness"], help="reflectance and shading from one image",
                  fill=_add_retinex_options)
@@ -140,7 +140,7 @@ class _Stages:
 def _ps_input(d: Path, drop: int):
     """(name, grey images (K, H, W), lights (K, 3), mask, true normals or None, pixel size)."""
 
-    from pbrbench.datasets import is_diligent, load_diligent
+    from pbrbench.datasets import is_diligent, is_psm, load_diligent, load_psm
 
     if not d.is_dir():
         raise UserError(f"{d}: no such folder")
@@ -148,9 +148,14 @@ def _ps_input(d: Path, drop: int):
         obj = load_diligent(d, indices=None, log=_log)
         sel = slice(drop, None)
         return obj.name, obj.grey[sel], obj.lights[sel], obj.mask, obj.normals, 1.0, "DiLiGenT layout"
+    if is_psm(d):
+        obj = load_psm(d, log=_log)
+        sel = slice(drop, None)
+        return obj.name, obj.grey[sel], obj.lights[sel], obj.mask, None, 1.0, "psmImages layout"
     if (d / "gt.json").is_file() and (d / "gt.exr").is_file():
         return _ps_render(d, drop)
-    raise UserError(f"{d}: neither a DiLiGenT object folder (light_directions.txt, 001.png ..., mask.png) nor a "
+    raise UserError(f"{d}: neither a DiLiGenT object folder (light_directions.txt, 001.png ..., mask.png), a "
+                    "psmImages object folder (lights.txt, name.0.tga ..., name.mask.tga) nor a "
                     "`pbrbench render --out` folder (gt.exr, gt.json)")
 
 
