@@ -22,7 +22,7 @@ Conditions:
   albedo (and light) from the image and ignores the one given (the chapter's section 1.3.6 says
   no method infers both shading and albedo: this one does, for a uniform albedo);
 * ``area`` (the ``*_area`` twin's ``direct``: a nearby rectangle along the nominal direction);
-* ``area+near<d>`` (``d`` = 2, 4, 8, :data:`NEAR_DISTANCES`): the ``sfs_near`` family, the
+* ``near+d<d>`` (``d`` = 2, 4, 8, :data:`NEAR_DISTANCES`): the ``sfs_near`` family, the
   sphere and camera of ``sfs_sphere`` lit by an isotropic point source ``d`` radii from the
   centre, along the view or oblique (direct light only); the methods are given the nominal
   direction from the object's centre and the irradiance ``I / d^2`` there.  Draft runs keep the
@@ -86,8 +86,9 @@ ESTIMATOR = "contour"
 
 
 def near_condition(distance: float) -> str:
-    """``area+near<d>``: the condition of a point source ``distance`` from the object's centre."""
-    return f"area+near{round(float(distance), 2):g}"
+    """``near+d<d>``: the condition of a point source ``distance`` radii from the object's centre
+    (direct light, as ``area``; the base ``near`` is photometric stereo's too)."""
+    return f"near+d{round(float(distance), 2):g}"
 
 
 def estimates_its_own_light(fn) -> bool:
@@ -205,7 +206,7 @@ class SFSTask(Task):
         return out
 
     def _near_jobs(self, quality) -> list[Job]:
-        """``area+near<d>`` jobs: each scene of ``sfs_near`` (one point source), labelled as the
+        """``near+d<d>`` jobs: each scene of ``sfs_near`` (one point source), labelled as the
         ``sfs_sphere`` case of its direction; per direction the distances ``quality.keep`` keeps
         less one (draft: the middle one)."""
         by_label: dict[str, list] = {}

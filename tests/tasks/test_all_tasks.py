@@ -16,7 +16,7 @@ def test_every_task_lists_unique_jobs_of_its_conditions():
         jobs = task.jobs(get_quality("draft"))
         assert len({j.key for j in jobs}) == len(jobs)
         for j in jobs:
-            assert j.task == name and j.condition.split("+")[0] in ("local", "area", "global")
+            assert j.task == name and j.condition.split("+")[0] in ("local", "area", "global", "near")
             assert all(isinstance(hash(v), int) for _, v in j.params)
         if name == "sfs" and jobs:
             assert {j.param("label") for j in jobs} == {"view", "oblique"}

@@ -22,17 +22,17 @@ def test_new_sfs_conditions_have_jobs_at_draft_and_standard():
         jobs = TASK.jobs(get_quality(q))
         conds = {j.condition for j in jobs}
         assert {"local+ambient0.1", "local+wrong_albedo0.7"} <= conds
-        near = [j for j in jobs if j.condition.startswith("area+near")]
+        near = [j for j in jobs if j.condition.startswith("near+d")]
         assert {j.param("label") for j in near} == {"view", "oblique"}
         assert all(j.scene.startswith("sfs_near[") and j.param("match") == "sfs_sphere" for j in near)
         assert conds <= set(TASK.conditions)
     draft = TASK.jobs(get_quality("draft"))
     # draft: the middle distance only, and the new conditions on sfs_sphere only
-    assert {j.condition for j in draft if j.condition.startswith("area+near")} == {near_condition(4)}
+    assert {j.condition for j in draft if j.condition.startswith("near+d")} == {near_condition(4)}
     assert {j.scene for j in draft if j.condition.startswith("local+")} >= {"sfs_sphere"}
     assert all(j.scene == "sfs_sphere" for j in draft if "ambient" in j.condition or "wrong_albedo" in j.condition)
     std = TASK.jobs(get_quality("standard"))
-    assert {j.condition for j in std if j.condition.startswith("area+near")} == {near_condition(d) for d in NEAR_DISTANCES}
+    assert {j.condition for j in std if j.condition.startswith("near+d")} == {near_condition(d) for d in NEAR_DISTANCES}
 
 
 def test_near_scenes_are_sfs_sphere_with_a_point_source_at_the_stated_distance():
@@ -122,7 +122,7 @@ def test_ambient_and_near_jobs_are_scored_and_near_is_labelled_as_its_sfs_sphere
     near_gt = type(gt)(arr, {"scene_hash": "synthetic-near"})
     name = "sfs_near[position=1.41421_0_1.41421]"
     params = tuple((k, -1 if k == "light_index" else v) for k, v in job.params) + (("match", "sfs_sphere"),)
-    res = run_task(TASK, Job("sfs", name, "area+near2", params), {name: near_gt})
+    res = run_task(TASK, Job("sfs", name, "near+d2", params), {name: near_gt})
     assert {s.scene for s in res.scores} == {"sfs_sphere:oblique"}
     assert {s.scene_hash for s in res.scores} == {"synthetic-near"}
     assert scores_of(res)[("zheng_chellappa1991", "failed")] == 0
