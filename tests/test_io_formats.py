@@ -301,7 +301,8 @@ def test_npy_goes_through_the_header_checks(tmp_path):
     np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     with open(tmp_path / "huge.npy", "wb") as f:
         np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False, "shape": (10**5, 10**5)})
-    for name, msg in (("obj", "never unpickles"), ("huge", "limit for an image file")):
+    (tmp_path / "cut.npy").write_bytes((tmp_path / "ok.npy").read_bytes()[:-8])
+    for name, msg in (("obj", "never unpickles"), ("huge", "above the 256.00 MiB"), ("cut", "truncated")):
         with pytest.raises(ValueError, match=msg) as e:
             io.read_image(tmp_path / f"{name}.npy")
         assert str(tmp_path / f"{name}.npy") in str(e.value) and "\n" not in str(e.value)

@@ -1,6 +1,6 @@
 """Every image format but EXR, read and written without loss: PNG (Pillow), TIFF (tifffile),
 JPEG / BMP / TGA / PPM / PGM (Pillow), PFM (a small reader here: no installed library reads it)
-and ``.npy`` (:func:`pbrbench.scene.data.read_npy`: no pickle, header checked).
+and ``.npy`` (the header checks of :func:`pbrbench.scene.data.read_npy`: no pickle, a size limit).
 
 Every reader looks at the header first (Pillow's and tifffile's lazy open, the ``.npy`` and PFM
 headers) and refuses a file whose decoded pixels would exceed
@@ -299,13 +299,34 @@ def write_image(path: str | os.PathLike, a: np.ndarray) -> None:
 
 # ----------------------------------------------------------------------------- any image
 def _read_npy(p: Path) -> np.ndarray:
-    from pbrbench.errors import SceneError
-    from pbrbench.scene.data import read_npy
-
-    try:
-        return read_npy(p, where=str(p), max_bytes=MAX_IMAGE_BYTES)
-    except SceneError as e:
-        raise ValueError(str(e).replace("for a scene data file", "for an image file")) from None
+    """A ``.npy`` file with the checks of :func:`pbrbench.scene.data.read_npy` (which lies a layer
+    above): no pickle, a plain real dtype, a declared size within :data:`MAX_IMAGE_BYTES` and
+    within the file, all checked on the header before the data is read."""
+    fmt = np.lib.format
+    with open(p, "rb") as f:
+        try:
+            version = fmt.read_magic(f)
+            shape, _fortran, dtype = (fmt.read_array_header_1_0(f) if version == (1, 0)
+                                      else fmt.read_array_header_2_0(f))
+        except Exception as e:  # noqa: BLE001 - any damage of the header
+            raise ValueError(f"{p}: not a readable .npy file ({' '.join(str(e).split())[:120]}); save it with "
+                             "numpy.save") from None
+        if dtype.hasobject:
+            raise ValueError(f"{p}: holds Python objects (dtype object, stored as a pickle); pbrbench never unpickles "
+                             "data files: save a numeric array, e.g. numpy.save(path, np.asarray(a, float))")
+        if dtype.names is not None or dtype.subdtype is not None or dtype.kind not in "biuf":
+            raise ValueError(f"{p}: dtype {dtype} is not a plain real number type; save a numeric array")
+        check_size(p, tuple(shape), dtype.itemsize)
+        nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
+        left = os.fstat(f.fileno()).st_size - f.tell()
+        if left < nbytes:
+            raise ValueError(f"{p}: truncated: the header announces {nbytes} bytes of data, the file holds {left}; "
+                             "save the array again with numpy.save")
+        f.seek(0)
+        try:
+            return np.asarray(fmt.read_array(f, allow_pickle=False))
+        except (ValueError, OSError) as e:
+            raise ValueError(f"{p}: not a readable .npy file ({e}); save the array again with numpy.save") from None
 
 
 def _read_tiff(p: Path) -> np.ndarray:
