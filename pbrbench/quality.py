@@ -9,9 +9,8 @@ of the benchmark to run:
   (:meth:`Quality.pick`) instead of all of them;
 * ``sweep_keep``: how many values of each swept family to keep (first and last included,
   evenly spaced; ``None`` keeps the whole sweep);
-* ``algorithm_options``: per ``"task/algorithm"`` budget options (fewer iterations, a fixed
-  polynomial degree) merged into the algorithm's options by
-  :meth:`pbrbench.registry.Algorithm.options_for`;
+* per-algorithm budgets (fewer iterations at draft) are not here: each registry entry carries
+  its own (:attr:`pbrbench.registry.Algorithm.budgets`, by profile name);
 * ``noise_target`` / ``max_spp_factor``: the relative noise (median, RMS over the lit pure
   pixels) every rendered pass should reach; a pass rendered at the scene's samples per pixel that
   is noisier gets the missing samples, up to ``max_spp_factor`` times the scene's count
@@ -29,8 +28,7 @@ profile's name: it asks the profile.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from types import MappingProxyType
+from dataclasses import dataclass
 
 from pbrbench.errors import UserError
 
@@ -44,7 +42,6 @@ class Quality:
     min_spp: int = 4
     short_subset: bool = False
     sweep_keep: int | None = None
-    algorithm_options: MappingProxyType = field(default_factory=lambda: MappingProxyType({}))
     description: str = ""
     noise_target: tuple[float, float] | None = None   # (median, rms) relative sd of every rendered pass
     max_spp_factor: float = 1.0                         # at most this many times the scene's spp
@@ -98,29 +95,11 @@ def subsample(values: list, keep: int) -> list:
     return [values[i] for i in idx]
 
 
-def _frozen(d: dict) -> MappingProxyType:
-    return MappingProxyType({k: MappingProxyType(dict(v)) for k, v in d.items()})
-
-
 PRESETS: dict[str, Quality] = {
     "draft": Quality(
         "draft", 0.25, 1 / 16, short_subset=True, sweep_keep=2,
-        # the regression run must stay short (every job is also scored on its delete-one-group replicates):
-        # iteration budgets of the iterative SFS methods halved, Mitsunaga-Nayar with a fixed
-        # degree instead of its held-out degree search (about 20x slower); coarser meshes for the
-        # radiosity models; a small budget for inverse rendering
-        algorithm_options=_frozen({
-            "sfs/horn1989": {"max_iter": 50}, "sfs/horn1989+estimated_light": {"max_iter": 50},
-            "sfs/zheng_chellappa1991": {"shape_options": {"max_iter": 50}},   # its shape step is horn1989
-            "sfs/tsai_shah1994": {"max_iter": 50}, "sfs/tsai_shah1994+estimated_light": {"max_iter": 50},
-            "hdr/mitsunaga1999": {"degree": 5},
-            # inverse rendering (one scene at draft): two levels, a few iterations, fewer samples
-            "photometric_stereo/inverse:nicolet2021": {"levels": (2, 1), "iterations": (6, 4), "spp": 8,
-                                                        "spp_grad": 2},
-            # the interreflection task's forward models: 8 patches across the view instead of 16
-            **{f"interreflection/{m}": {"cells": 8}
-               for m in ("local", "radiosity:1", "radiosity:2", "radiosity:4", "radiosity")},
-        }),
+        # the regression run must stay short (every job is also scored on its delete-one-group
+        # replicates): the algorithms' draft budgets are on their registry entries (Algorithm.budgets)
         description="CI: resolution / 4 (at least 32 px), spp / 16, short scene lists, two values per sweep"),
     "standard": Quality("standard", 1.0, 1.0, noise_target=(0.01, 0.03), max_spp_factor=2.0,
                         description="the benchmark: the scene files' resolution and samples, up to 2x the samples "

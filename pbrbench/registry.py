@@ -14,8 +14,10 @@ of the task it follows (``interface``; most tasks have one) and its kind:
 Built-in entries come from the tasks (:meth:`pbrbench.tasks.base.Task.builtin_algorithms`), which
 read the methods tables: adding a method to a table adds it to the benchmark with no other edit.
 Per-quality budgets (e.g. fewer iterations at draft) live in the quality profile
-(:attr:`pbrbench.quality.Quality.algorithm_options`) and are merged by
-:meth:`Algorithm.options_for`.  The callable's signature is the task's (``docs/adding.md``).
+(:attr:`Algorithm.budgets`, by quality profile name) and are merged by
+:meth:`Algorithm.options_for`; an entry also carries its cost note, the entry it is a variant of,
+whether it takes a seed and a predicate on the jobs it runs on, and :meth:`Algorithm.check`
+validates every key when the registry is built.  The callable's signature is the task's (``docs/adding.md``).
 
 Plugins (``docs/plugins.md``) are added by :func:`pbrbench.plugins.plugin_registry`: the built-ins, then every
 entry point of the group :data:`ENTRY_POINT_GROUP` and every ``--algorithm`` spec
@@ -123,6 +125,11 @@ class Algorithm:
     figures: bool = True                  # whether the report shows this algorithm's images
     fingerprint: str | None = None        # source hash frozen at load time (plugins); None: computed
     time_limit: float | None = None       # seconds; set: each call runs in a child process (isolation)
+    budgets: Mapping = field(default_factory=dict)   # quality profile name -> options at that profile
+    cost_note: str = ""                   # why it takes the time it takes (the report shows it)
+    variant_of: str | None = None         # the entry this one wraps (e.g. with an estimated light)
+    seeded: bool = False                  # it takes ``seed`` (Monte Carlo, random starts)
+    applies_to: Callable | None = None    # (job, quality) -> bool: whether it runs on a job (with conditions)
 
     def __post_init__(self):
         if self.kind not in KINDS:
@@ -134,6 +141,8 @@ class Algorithm:
         if self.time_limit is not None and not float(self.time_limit) > 0:
             raise ValueError(f"Algorithm {self.name!r}: time_limit={self.time_limit!r}; give seconds > 0 or None")
         object.__setattr__(self, "options", MappingProxyType(dict(self.options)))
+        object.__setattr__(self, "budgets", MappingProxyType({str(q): MappingProxyType(dict(o))
+                                                              for q, o in dict(self.budgets).items()}))
 
     @property
     def full_version(self) -> str:
@@ -142,14 +151,36 @@ class Algorithm:
         return f"{v}+{self.fingerprint or source_hash(self.fn)}"
 
     def options_for(self, quality=None) -> dict:
-        """Fixed options plus the quality profile's budget for this (task, algorithm)."""
-        extra = {}
-        if quality is not None:
-            extra = dict(getattr(quality, "algorithm_options", {}).get(f"{self.task}/{self.name}", {}))
+        """Fixed options plus this entry's budget at the quality profile ``quality``."""
+        extra = dict(self.budgets.get(quality.name, {})) if quality is not None else {}
         return {**self.options, **extra}
 
     def applies(self, condition: str) -> bool:
         return self.conditions is None or condition in self.conditions
+
+    def applies_to_job(self, job, quality=None) -> bool:
+        """Whether it runs on ``job``: its conditions, then its own predicate (``applies_to``)."""
+        return self.applies(job.condition) and (self.applies_to is None or bool(self.applies_to(job, quality)))
+
+    def check(self, profiles) -> None:
+        """Refuse an entry whose metadata does not fit: a budget for an unknown quality profile, or a
+        fixed or budget option its callable does not take (``ValueError`` naming the key)."""
+        unknown = [q for q in self.budgets if q not in profiles]
+        if unknown:
+            raise ValueError(f"algorithm {self.task}/{self.name}: budgets for unknown quality profile(s) "
+                             f"{', '.join(unknown)}; use {', '.join(profiles)}")
+        try:
+            params = inspect.signature(_unwrap(self.fn)).parameters
+        except (TypeError, ValueError):
+            return
+        if any(p.kind is p.VAR_KEYWORD for p in params.values()):
+            return
+        bound = set(self.fn.keywords) if isinstance(self.fn, functools.partial) else set()
+        for where, opts in [("options", self.options), *((f"budgets[{q}]", o) for q, o in self.budgets.items())]:
+            bad = [k for k in opts if k not in params and k not in bound]
+            if bad:
+                raise ValueError(f"algorithm {self.task}/{self.name}: {where} {', '.join(bad)} is not a parameter of "
+                                 f"{getattr(_unwrap(self.fn), '__name__', self.fn)}; fix the key")
 
     def __call__(self, *args, quality=None, **kwargs):
         kw = {**self.options_for(quality), **kwargs}
@@ -173,7 +204,8 @@ class Algorithm:
     def __reduce__(self):  # MappingProxyType does not pickle (Dask ships entries to workers)
         return (_rebuild, (self.name, self.task, _portable(self.fn), self.kind, self.version, dict(self.options),
                            self.conditions, self.description, self.origin, self.interface, self.figures,
-                           self.fingerprint, self.time_limit))
+                           self.fingerprint, self.time_limit, {q: dict(o) for q, o in self.budgets.items()},
+                           self.cost_note, self.variant_of, self.seeded, self.applies_to))
 
 
 class _ByValue:
@@ -254,9 +286,12 @@ class Registry:
 
 def builtin_registry(tasks: Mapping) -> Registry:
     """The built-in algorithms of ``tasks`` (name -> Task), in each task's order."""
+    from pbrbench.quality import PRESETS
+
     reg = Registry()
     for task in tasks.values():
         for alg in task.builtin_algorithms():
+            alg.check(PRESETS)      # every metadata key validated before anything runs
             reg.add(alg)
     return reg
 

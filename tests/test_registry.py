@@ -64,6 +64,23 @@ def test_quality_budgets_are_merged_and_entries_pickle():
     assert reg.get("hdr", "mitsunaga1999").options_for(get_quality("draft")) == {"degree": 5}
     back = pickle.loads(pickle.dumps(horn))
     assert back.name == horn.name and back.full_version == horn.full_version
+    assert back.options_for(get_quality("draft")) == {"max_iter": 50} and back.cost_note == horn.cost_note
+    assert reg.get("sfs", "horn1989+estimated_light").variant_of == "horn1989"
+
+
+def test_entry_metadata_is_validated_when_the_registry_is_built():
+    from pbrbench.quality import PRESETS
+
+    def fn(images, lights, *, mask=None, max_iter=10):
+        return images
+
+    Algorithm("a", "t", fn, budgets={"draft": {"max_iter": 5}}).check(PRESETS)
+    with pytest.raises(ValueError, match="unknown quality profile"):
+        Algorithm("a", "t", fn, budgets={"drafty": {"max_iter": 5}}).check(PRESETS)
+    with pytest.raises(ValueError, match="max_iters is not a parameter"):
+        Algorithm("a", "t", fn, budgets={"draft": {"max_iters": 5}}).check(PRESETS)
+    with pytest.raises(ValueError, match="options tol"):
+        Algorithm("a", "t", fn, options={"tol": 1}).check(PRESETS)
     assert pickle.loads(pickle.dumps(get_quality("draft"))) is get_quality("draft")
 
 

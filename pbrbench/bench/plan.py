@@ -55,7 +55,7 @@ def task_info(tasks: dict, registry) -> dict:
         algs = registry.for_task(n)
         out[n] = {"description": t.description, "conditions": list(t.conditions),
                   "headline_metric": t.headline_metric, "reference_condition": t.reference_condition,
-                  "notes": t.notes, "cost_notes": dict(getattr(t, "cost_notes", {}) or {}),
+                  "notes": t.notes, "cost_notes": {a.name: a.cost_note for a in t.builtin_algorithms() if a.cost_note},
                   "algorithms": [a.name for a in algs],
                   "algorithm_kinds": {a.name: a.kind for a in algs},
                   "algorithm_versions": {a.name: a.full_version for a in algs},

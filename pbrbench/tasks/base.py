@@ -132,7 +132,6 @@ class Task:
 
     reference_condition: str = "local"   # the headline's first column; effects are costs against it
     notes: str = ""                      # shown in the report (e.g. why an effect axis is absent)
-    cost_notes: dict = {}                # algorithm -> why it takes the time it takes (shown in the report)
     library = None                       # the SceneLibrary it reads (bind()); None: the one shipped
 
     def bind(self, library) -> Task:

@@ -191,9 +191,15 @@ class HDRTask(Task):
         return True  # the camera's noise and the calibrations' pixel samples follow the seed
 
     def builtin_algorithms(self) -> list[Algorithm]:
-        from pbrbench.infer.hdr import CALIBRATION_METHODS
+        from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
 
-        out = [Algorithm(n, self.name, fn) for n, fn in CALIBRATION_METHODS.items()]
+        # draft: Mitsunaga-Nayar with a fixed degree instead of its held-out degree search (about 20x slower)
+        budgets = {"mitsunaga1999": {"draft": {"degree": 5}}}
+        out = [Algorithm(n, self.name, fn, budgets=budgets.get(n, {})) for n, fn in CALIBRATION_METHODS.items()]
+        # every merge of the methods table, given the camera's true response: the merges compared alone
+        out += [Algorithm(f"merge:{n}", self.name, fn, interface="merge", figures=False,
+                          description=f"the {n} merge with the true inverse response (the merge alone)")
+                for n, fn in MERGE_METHODS.items()]
         out += [Algorithm("baseline:ignore_response", self.name, ignore_response, kind="baseline"),
                 Algorithm("floor:true_response", self.name, true_response, kind="floor")]
         return out
@@ -277,6 +283,8 @@ class HDRTask(Task):
         from pbrbench.infer.hdr import merge_hdr
 
         algorithms = [a for a in algorithms if a.applies(job.condition)]
+        merges = [a for a in algorithms if a.interface == "merge"]
+        algorithms = [a for a in algorithms if a.interface != "merge"]
         gt = gts[job.scene]
         rad, mask, br, domain, coverage, images = self._bracket(job, gt, seed)
         times = br.exposure_times
@@ -320,6 +328,19 @@ class HDRTask(Task):
                     lr = np.log2(grey(est) / grey(rad))
                 lr = np.where(dom, lr - np.nanmedian(lr[dom]), np.nan)
                 res.error_maps[f"log2 radiance error (stops): {alg.name}"] = display_map(lr)
+        if merges:     # the merges of the methods table, each given the true response
+            truth = true_response(images, times, truth=br)
+            for alg in merges:
+                with Timer() as t:
+                    est, _, err = call(alg, br.images, times, truth, quality=quality,
+                                       check=lambda o: check_array(o, "radiance", rad.shape))
+                if err is not None:
+                    book.add(alg.name, {"failed": 1.0}, t.seconds)
+                    res.failures[alg.name] = err
+                    continue
+                sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+                sc["bracket_coverage"] = coverage
+                book.add(alg.name, sc, t.seconds)
         res.plots["inverse response (green channel)"] = profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",
             note="gauge: f^-1(top level) = 1 for every curve")

@@ -89,11 +89,6 @@ class InterreflectionTask(Task):
              "at high albedo, the bump's shadow) and holds where they are dark (black room, albedo 0.1); "
              "radiosity:k counts k bounces. The models of a scene share one solution, whose time is charged to "
              "the first model called. Export/evaluate: not supported (the models take the scene description).")
-    cost_notes = {
-        "local": "charged with the scene's shared work: the patch mesh, the form factors with their visibility "
-                 "rays and the radiosity solution every model of the scene reads (one memoised solve per scene); "
-                 "the local model itself is the direct term",
-    }
 
     def scene_class(self, scene: str) -> str | None:
         """The class of a scene in the headline (its own row group, mean ± SE over its scenes).
@@ -122,9 +117,14 @@ class InterreflectionTask(Task):
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.radiosity.forward_models import MODELS
 
-        out = [Algorithm("local", self.name, MODELS["local"], kind="baseline",
-                         description="the local shading model: direct light with shadows, no interreflection")]
-        out += [Algorithm(n, self.name, fn, description=f"the radiosity model, {n.partition(':')[2] or 'converged'}"
+        draft = {"draft": {"cells": 8}}   # the forward models at draft: 8 patches across the view instead of 16
+        out = [Algorithm("local", self.name, MODELS["local"], kind="baseline", budgets=draft,
+                         description="the local shading model: direct light with shadows, no interreflection",
+                         cost_note="charged with the scene's shared work: the patch mesh, the form factors with "
+                                   "their visibility rays and the radiosity solution every model of the scene reads "
+                                   "(one memoised solve per scene); the local model itself is the direct term")]
+        out += [Algorithm(n, self.name, fn, budgets=draft,
+                          description=f"the radiosity model, {n.partition(':')[2] or 'converged'}"
                           f"{' bounce(s)' if ':' in n else ''}")
                 for n, fn in MODELS.items() if n != "local"]
         return out

@@ -182,12 +182,6 @@ class PhotometricStereoTask(Task):
     short_near_families = SHORT_NEAR_FAMILIES
     reflex_families = REFLEX
     short_reflex_families = ("groove_reflex_parallel",)
-    cost_notes = {
-        "inverse:nicolet2021": "analysis by synthesis: Adam over a height field and an albedo texture, each "
-                               "iteration a Mitsuba render of every light and its gradient (about 59 M camera "
-                               "paths per call at standard), called five times per job (the images and the four "
-                               "delete-one-group replicates); run on three scenes only (docs/inverse.md)",
-    }
 
     # ------------------------------------------------------------------------- algorithms
     def builtin_algorithms(self) -> list[Algorithm]:
@@ -204,7 +198,14 @@ class PhotometricStereoTask(Task):
                           description="the true normals integrated by this method: the integration floor")
                 for n, fn in INTEGRATION.items()]
         out += [Algorithm(f"inverse:{n}", self.name, fn, interface="scene", conditions=INVERSE_APPLIES,
-                          description="inverse rendering with Mitsuba (needs the scene's camera and lights)")
+                          description="inverse rendering with Mitsuba (needs the scene's camera and lights)",
+                          seeded=True, applies_to=self._inverse_applies,
+                          # draft (one scene): two levels, a few iterations, fewer samples
+                          budgets={"draft": {"levels": (2, 1), "iterations": (6, 4), "spp": 8, "spp_grad": 2}},
+                          cost_note="analysis by synthesis: Adam over a height field and an albedo texture, each "
+                                    "iteration a Mitsuba render of every light and its gradient (about 59 M camera "
+                                    "paths per call at standard), called five times per job (the images and the "
+                                    "four delete-one-group replicates); run on three scenes only (docs/inverse.md)")
                 for n, fn in INVERSE.items()]
         return out
 
@@ -452,7 +453,8 @@ class PhotometricStereoTask(Task):
                 continue
             raw = None
             if alg.interface == "scene":
-                if not self._inverse_applies(job, quality):
+                # the task's rule for every scene-interface method (a plugin's too), and the entry's own
+                if not (self._inverse_applies(job, quality) and alg.applies_to_job(job, quality)):
                     continue
                 out, seconds, err = self._solve_scene(alg, job, images, lights, gt.mask, quality, seed)
                 if err is None:

@@ -82,6 +82,17 @@ NEAR_FAMILY = "sfs_near"
 NEAR_MATCH = "sfs_sphere"   # the family whose cases the near scenes are the twins of
 NEAR_DISTANCES = (2, 4, 8)  # point-source distances of sfs_near, in sphere radii
 EST = "+estimated_light"
+# the draft run's budgets (every job is also scored on its delete-one-group replicates): the
+# iterative methods' sweeps halved; zheng_chellappa1991's shape step is horn1989
+BUDGETS = {"horn1989": {"draft": {"max_iter": 50}}, "tsai_shah1994": {"draft": {"max_iter": 50}},
+           "zheng_chellappa1991": {"draft": {"shape_options": {"max_iter": 50}}}}
+COST_NOTES = {
+    "horn1989": "iterative: 100 coarse-to-fine sweeps per pyramid level (5x on the coarsest), each a "
+                "vectorised pass over the image; the most accurate method with an oblique light",
+    "tsai_shah1994": "Newton steps of the causal system with a damped line search; it stalls after a few "
+                     "steps and the remaining time is spent in rejected trial steps (a stationary point "
+                     "of the linearisation, reported as not converged)",
+}
 ESTIMATOR = "contour"
 
 
@@ -142,21 +153,14 @@ class SFSTask(Task):
     headline_metric = "normal_mean_deg"
     families = FAMILIES
     short_families = ("sfs_sphere", "sfs_vase")   # the vase stands on a plane: interreflection
-    cost_notes = {
-        "horn1989": "iterative: 100 coarse-to-fine sweeps per pyramid level (5x on the coarsest), each a "
-                    "vectorised pass over the image; the most accurate method with an oblique light",
-        "tsai_shah1994": "Newton steps of the causal system with a damped line search; it stalls after a few "
-                         "steps and the remaining time is spent in rejected trial steps (a stationary point "
-                         "of the linearisation, reported as not converged)",
-    }
-
     def builtin_algorithms(self) -> list[Algorithm]:
         from pbrbench.infer.sfs import LIGHT_METHODS, METHODS
 
-        out = [Algorithm(n, self.name, fn) for n, fn in METHODS.items()]
+        out = [Algorithm(n, self.name, fn, budgets=BUDGETS.get(n, {}), cost_note=COST_NOTES.get(n, ""))
+               for n, fn in METHODS.items()]
         out += [Algorithm(n + EST, self.name, functools.partial(with_estimated_light, method=fn,
                                                                 estimator=LIGHT_METHODS[ESTIMATOR]),
-                          conditions=("local",), figures=False,
+                          conditions=("local",), figures=False, variant_of=n, budgets=BUDGETS.get(n, {}),
                           description=f"{n} with the light and albedo estimated by the {ESTIMATOR} method")
                 for n, fn in METHODS.items() if not estimates_its_own_light(fn)]
         out += [Algorithm("baseline:flat", self.name, flat_reference, kind="baseline", interface="reference"),

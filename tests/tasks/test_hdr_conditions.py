@@ -91,3 +91,20 @@ def test_grossberg_nayar_beats_debevec_unregistered_and_rough_times_are_rough():
     rough = scores_of(run_task(TASK, Job("hdr", "hdr_scene", "global+rough_times0.07"), {"hdr_scene": hdr_gt()}))
     assert rough[("floor:true_response", "log2_rmse")] > 0.01   # the merge is given the stated times
     assert np.isfinite(rough[("grossberg_nayar2003", "response_rmse")])
+
+
+def test_every_merge_of_the_methods_table_is_scored_with_the_true_response():
+    """The merges table is benchmarked: each merge, given the camera's true inverse response,
+    is scored like the calibration methods (and the default merge equals the floor's)."""
+    from pbrbench.infer.hdr import MERGE_METHODS
+    from pbrbench.infer.hdr.merge import DEFAULT_MERGE
+    from pbrbench.tasks.hdr import TASK
+
+    names = [a.name for a in TASK.builtin_algorithms() if a.interface == "merge"]
+    assert names == [f"merge:{n}" for n in MERGE_METHODS]
+    job = next(j for j in TASK.jobs(get_quality("draft")) if j.condition == "global+noise0")
+    res = run_task(TASK, job, {job.scene: hdr_gt()})
+    got = {(s.algorithm, s.metric): s.value for s in res.scores}
+    for n in MERGE_METHODS:
+        assert np.isfinite(got[(f"merge:{n}", "log2_rmse")]), n
+    assert got[(f"merge:{DEFAULT_MERGE}", "log2_rmse")] == got[("floor:true_response", "log2_rmse")]
