@@ -48,3 +48,28 @@ def test_a_reader_that_stops_early_gets_no_error_line():
     err = p.stderr.read().decode()
     p.wait(timeout=60)
     assert first and "Broken pipe" not in err and "error" not in err.lower(), err
+
+
+def test_the_infer_defaults_are_the_dispatchers():
+    """``pbrbench infer`` offers the defaults of the Python calls: one place decides each."""
+    import argparse
+
+    from pbrbench.cli.infer import _add_hdr_options, _add_ps_options, _add_retinex_options
+    from pbrbench.infer.hdr import calibrate_response, merge_hdr
+    from pbrbench.infer.lightness import estimate_lightness
+    from pbrbench.infer.photometric_stereo import solve_photometric_stereo
+    from tests.test_cli_help import _default
+
+    for add, want in ((_add_ps_options, {"method": _default(solve_photometric_stereo)}),
+                      (_add_retinex_options, {"method": _default(estimate_lightness)}),
+                      (_add_hdr_options, {"method": _default(calibrate_response), "merge": _default(merge_hdr)})):
+        p = argparse.ArgumentParser()
+        add(p)
+        for k, v in want.items():
+            assert p.get_default(k) == v, (add.__name__, k)
+
+
+def _default(fn):
+    import inspect
+
+    return inspect.signature(fn).parameters["method"].default

@@ -45,15 +45,26 @@ def _add_problems(p):
     s.add_parser("hdr", help="camera response and merged radiance from an exposure bracket", fill=_add_hdr_options)
 
 
+def default_method(dispatcher, param: str = "method") -> str:
+    """The default of a dispatcher's ``method`` argument: the command line offers the same default
+    as the Python call (one place decides it)."""
+    import inspect
+
+    return inspect.signature(dispatcher).parameters[param].default
+
+
 def _add_ps_options(ps):
     from pbrbench.infer.integration import METHODS as INTEGRATION
+    from pbrbench.infer.integration import integrate_normals
     from pbrbench.infer.photometric_stereo import METHODS as PS
+    from pbrbench.infer.photometric_stereo import solve_photometric_stereo
 
     ps.add_argument("dir", metavar="DIR")
     ps.add_argument("--out", required=True, metavar="OUT")
-    ps.add_argument("--method", choices=list(PS), default="woodham1980", help="default: woodham1980")
-    ps.add_argument("--integrate", choices=list(INTEGRATION), default="lsq",
-                    help="surface integration of the normals (default: lsq)")
+    d_ps, d_int = default_method(solve_photometric_stereo), default_method(integrate_normals)
+    ps.add_argument("--method", choices=list(PS), default=d_ps, help=f"default: {d_ps}")
+    ps.add_argument("--integrate", choices=list(INTEGRATION), default=d_int,
+                    help=f"surface integration of the normals (default: {d_int})")
     ps.add_argument("--drop-first", type=int, default=0, metavar="N",
                     help="leave out the first N images (e.g. 20 for DiLiGenT's bearPNG)")
     ps.set_defaults(func=run_ps)
@@ -61,10 +72,12 @@ def _add_ps_options(ps):
 
 def _add_retinex_options(rx):
     from pbrbench.infer.lightness import METHODS as LIGHTNESS
+    from pbrbench.infer.lightness import estimate_lightness
 
     rx.add_argument("image", metavar="IMAGE", help="an image file, or an MIT Intrinsic Images object folder")
     rx.add_argument("--out", required=True, metavar="OUT")
-    rx.add_argument("--method", choices=list(LIGHTNESS), default="blake1985", help="default: blake1985")
+    d_rx = default_method(estimate_lightness)
+    rx.add_argument("--method", choices=list(LIGHTNESS), default=d_rx, help=f"default: {d_rx}")
     rx.add_argument("--threshold", type=float, default=None, help="log-gradient threshold (the method's default)")
     rx.add_argument("--mask", default=None, metavar="FILE", help="a mask image (non-zero = use)")
     rx.add_argument("--gamma", choices=["auto", "linear", "srgb"], default="auto",
@@ -73,14 +86,13 @@ def _add_retinex_options(rx):
 
 
 def _add_hdr_options(hd):
-    from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
-    from pbrbench.infer.hdr.merge import DEFAULT_MERGE
+    from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS, calibrate_response, merge_hdr
 
     hd.add_argument("dir", metavar="DIR")
     hd.add_argument("--out", required=True, metavar="OUT")
-    hd.add_argument("--method", choices=list(CALIBRATION_METHODS), default="debevec1997", help="default: debevec1997")
-    hd.add_argument("--merge", choices=list(MERGE_METHODS), default=DEFAULT_MERGE,
-                    help=f"default: {DEFAULT_MERGE} (merge_hdr's)")
+    d_cal, d_merge = default_method(calibrate_response), default_method(merge_hdr)
+    hd.add_argument("--method", choices=list(CALIBRATION_METHODS), default=d_cal, help=f"default: {d_cal}")
+    hd.add_argument("--merge", choices=list(MERGE_METHODS), default=d_merge, help=f"default: {d_merge}")
     hd.set_defaults(func=run_hdr)
 
 
