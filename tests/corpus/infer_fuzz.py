@@ -273,28 +273,46 @@ DISPATCHERS = {"calibrate_response": "CALIBRATION_METHODS", "merge_hdr": "MERGE_
                "remove_specularities": "FILL_METHODS"}
 
 
+# the options a table method requires beyond its dispatcher's (keyword-only, without a default):
+# a method that needs more is named here, or the corpus refuses to build (below)
+METHOD_EXTRAS = {"iwahori1990": {"pixel_size": 2.0 / 24, "depth0": 0.0}}
+
+
+def _required_extras(fn) -> set[str]:
+    return {p.name for p in inspect.signature(fn).parameters.values()
+            if p.kind is p.KEYWORD_ONLY and p.default is p.empty and p.name != "mask"}
+
+
 def _every_method(B) -> list[Case]:
     """The array mutations once more through each dispatcher, for every method of its table
-    (methods added later are covered without editing this file)."""
+    (methods added later are covered without editing this file, unless they require options the
+    dispatcher's call lacks: those are given in :data:`METHOD_EXTRAS`)."""
     import pbrbench.infer as I
 
     specs = _specs(B)
     out = []
     for disp, table in DISPATCHERS.items():
         fn = getattr(I, disp)
-        pos, kw, _ = specs[disp]
+        pos, kw0, _ = specs[disp]
         default = inspect.signature(fn).parameters["method"].default
-        for method in getattr(I, table):
+        for method, mfn in getattr(I, table).items():
             if method == default:
                 continue
+            need = _required_extras(mfn)
+            missing = need - set(METHOD_EXTRAS.get(method, {}))
+            if missing:
+                raise RuntimeError(f"{table}[{method!r}] requires {sorted(missing)}: add them to METHOD_EXTRAS")
+            kw = dict(kw0, **METHOD_EXTRAS.get(method, {}))
             for aname in pos:
                 if aname == "response":
                     continue
                 for mname in ("complex", "object", "empty", "nan", "inf", "flat", "ragged", "none"):
                     if mname == "flat" and np.ndim(pos[aname]) <= 1:
                         continue
-                    if mname == "none" and inspect.signature(fn).parameters[aname].default is None:
-                        continue  # None is that argument's documented default
+                    mp = inspect.signature(mfn).parameters.get(aname)
+                    if mname == "none" and (inspect.signature(fn).parameters[aname].default is None
+                                            or (mp is not None and mp.default is None)):
+                        continue  # None is that argument's documented default (of the dispatcher or the method)
                     p2 = dict(pos, **{aname: ARRAY_MUTATIONS[mname](pos[aname])})
 
                     def call(fn=fn, p2=p2, kw=kw, method=method):

@@ -242,6 +242,7 @@ def photometric_stereo_iwahori1990(images, lights, *, mask=None, intensities=Non
     check_finite(pos, "lights")
     ps = check_pixel_size(pixel_size)
     m = check_mask(mask, (h, w))
+    check_finite(img, "images", where=np.broadcast_to(m.reshape((1, h, w) + (1,) * (img.ndim - 3)), img.shape))
     cen = as_float_array(center, "center", ndim=(1,))
     if cen.shape != (2,):
         raise ValueError(f"center: expected (x, y) of the image centre, got shape {cen.shape}")

@@ -34,7 +34,7 @@ from dataclasses import replace
 import numpy as np
 from scipy import ndimage
 
-from pbrbench.checks import call_method, check_method, check_number
+from pbrbench.checks import as_float_array, call_method, check_finite, check_method, check_number
 from pbrbench.infer.sfs._common import LightEstimate, SFSResult, _prepare_light_image
 from pbrbench.infer.sfs.horn1989 import shape_from_shading_horn1989
 from pbrbench.infer.sfs.pentland1990 import shape_from_shading_pentland1990
@@ -222,6 +222,11 @@ def shape_from_shading_zheng_chellappa1991(image, light=None, *, albedo=None, ma
     for k in ("albedo", "mask", "pixel_size"):
         if k in shape_options:
             raise ValueError(f"shape_options: {k!r} is an argument of this method, not a shape option; pass it directly")
+    if light is not None:      # a given light is checked even where it is not used: a bad one is the caller's error
+        given = as_float_array(light, "light", ndim=(1,))
+        if given.shape != (3,):
+            raise ValueError(f"light: expected a 3-vector (x, y, z) toward the source, got shape {given.shape}")
+        check_finite(given, "light")
     if estimate == "albedo" and light is None:
         raise ValueError("light: estimate='albedo' uses the given light; pass it, or use estimate='both'")
     if estimate == "light" and albedo is None:
