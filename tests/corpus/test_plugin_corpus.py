@@ -11,6 +11,10 @@ import pytest
 
 from tests.corpus.plugin_faults import CASES
 
+# each case starts worker processes and waits out load and time limits (2-5 s): in `make test`,
+# not in the fast loop
+pytestmark = pytest.mark.slow
+
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_plugin_fault_is_handled(name, tmp_path):
