@@ -71,6 +71,14 @@ def _load(loader, path, notes: list, **kw):
     return obj
 
 
+def _failed(ev, res, job, digest, obj, alg, err: str, seconds: float) -> None:
+    """Record one algorithm's failure on one object: its ``failed`` score, the reason, the row."""
+    res.scores += _scores(job, digest, alg, {"failed": 1.0}, seconds)
+    res.failures[alg.name] = err
+    ev.failures.append(f"{obj.name}: {alg.name}: {err}")
+    ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": {}, "error": err})
+
+
 def _scores(job, scene_hash, alg, values: dict, seconds: float) -> list:
     from pbrbench.metrics import metric
     from pbrbench.tasks.base import Score
@@ -294,10 +302,7 @@ def _diligent(objs, root, methods, specs, predictions, name, settings, store_run
             out, seconds, err = _call(alg, g, obj.lights, mask=obj.mask,
                                       check=lambda o, hw=g.shape[1:3]: result_arrays(o, hw))
             if err is not None:
-                res.scores += _scores(job, digest, alg, {"failed": 1.0}, seconds)
-                res.failures[alg.name] = err
-                ev.failures.append(f"{obj.name}: {alg.name}: {err}")
-                ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": {}, "error": err})
+                _failed(ev, res, job, digest, obj, alg, err, seconds)
                 continue
             n, _, valid = out
             n = np.where(valid[..., None], n, 0.0)
@@ -367,10 +372,7 @@ def _mit(objs, root, methods, specs, predictions, name, settings, store_run, rep
                 except ValueError as e:
                     err = _one_line(e)
             if err is not None:
-                res.scores += _scores(job, digest, alg, {"failed": 1.0}, seconds)
-                res.failures[alg.name] = err
-                ev.failures.append(f"{obj.name}: {alg.name}: {err}")
-                ev.rows.append({"object": obj.name, "algorithm": alg.name, "scores": {}, "error": err})
+                _failed(ev, res, job, digest, obj, alg, err, seconds)
                 continue
             res.scores += _scores(job, digest, alg, {"intrinsic_lmse": sc["intrinsic_lmse"], "lmse": sc["lmse_reflectance"]},
                                   seconds)

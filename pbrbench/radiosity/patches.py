@@ -292,6 +292,15 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
     verts, nvs, rhos, oids, fids, gis = [], [], [], [], [], []
     occ_tris, occ_groups = [], []
     face = 0
+
+    def add_quads(pts, rho, obj: int, fid: int) -> None:
+        """Quadrilateral patches ``pts`` (N, 4, 3) of object ``obj`` on face ``fid``, albedo ``rho``."""
+        verts.append(pts)
+        nvs.append(np.full(len(pts), 4))
+        rhos.append(rho)
+        oids.append(np.full(len(pts), obj))
+        fids.append(np.full(len(pts), fid))
+        gis.append(np.full((len(pts), 2), -1))
     for i, shape in enumerate(spec.shapes):
         if shape.type not in SUPPORTED_SHAPES:
             raise ValueError(f"shapes[{i}] is a {shape.type!r}: the radiosity model supports "
@@ -304,12 +313,7 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
                                  "use a constant albedo")
             for quads, strip in _cylinder_facets(shape, patch_size):
                 pts = quads[:, ::-1] if shape.flip_normals else quads
-                verts.append(pts)
-                nvs.append(np.full(len(pts), 4))
-                rhos.append(_albedo_of(spec, i, shape, None, len(pts)))
-                oids.append(np.full(len(pts), i))
-                fids.append(np.full(len(pts), face))
-                gis.append(np.full((len(pts), 2), -1))
+                add_quads(pts, _albedo_of(spec, i, shape, None, len(pts)), i, face)
                 full = strip[::-1] if shape.flip_normals else strip
                 occ_tris.append(full[[[0, 1, 2], [0, 2, 3]]].reshape(2, 3, 3))
                 occ_groups.append(np.full(2, face))
@@ -366,12 +370,7 @@ def patches_from_spec(spec, *, patch_size: float = 0.1, heightfield_cells: int |
             pts = loc @ R.T + c
             if shape.flip_normals:
                 pts = pts[:, ::-1]
-            verts.append(pts)
-            nvs.append(np.full(len(pts), 4))
-            rhos.append(_albedo_of(spec, i, shape, uv, len(pts)))
-            oids.append(np.full(len(pts), i))
-            fids.append(np.full(len(pts), face))
-            gis.append(np.full((len(pts), 2), -1))
+            add_quads(pts, _albedo_of(spec, i, shape, uv, len(pts)), i, face)
             full = full_loc @ R.T + c
             if shape.flip_normals:
                 full = full[:, ::-1]

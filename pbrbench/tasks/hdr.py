@@ -152,6 +152,17 @@ def ignore_response(images, exposure_times):
     return CameraResponse(np.repeat(z[:, None], channels, axis=1), levels, "linear")
 
 
+def _radiance_scores(book, res, alg, est, err, seconds, rad, domain, coverage) -> dict | None:
+    """The radiance scores of a merged ``est`` (None, with the failure recorded, when ``err``)."""
+    if err is not None:
+        book.add(alg.name, {"failed": 1.0}, seconds)
+        res.failures[alg.name] = err
+        return None
+    sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
+    sc["bracket_coverage"] = coverage
+    return sc
+
+
 def true_response(images, exposure_times, *, truth):
     """``floor:true_response``: the camera's own inverse response (``truth`` is the bracket)."""
     from pbrbench.infer.hdr import CameraResponse
@@ -310,12 +321,9 @@ class HDRTask(Task):
                         est = merge_hdr(br.images, tt, resp)
                     except Exception as e:  # noqa: BLE001 - an unusable response is the algorithm's failure
                         err = one_line(e)
-            if err is not None:
-                book.add(alg.name, {"failed": 1.0}, t.seconds)
-                res.failures[alg.name] = err
+            sc = _radiance_scores(book, res, alg, est, err, t.seconds, rad, domain, coverage)
+            if sc is None:
                 continue
-            sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
-            sc["bracket_coverage"] = coverage
             if alg.kind != "floor":
                 sc["response_rmse"] = response_rmse(resp.inverse, br.true_inverse)
                 curves[alg.name] = np.log2(np.maximum(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)], 1e-12))
@@ -334,13 +342,9 @@ class HDRTask(Task):
                 with Timer() as t:
                     est, _, err = call(alg, br.images, times, truth, quality=quality,
                                        check=lambda o: check_array(o, "radiance", rad.shape))
-                if err is not None:
-                    book.add(alg.name, {"failed": 1.0}, t.seconds)
-                    res.failures[alg.name] = err
-                    continue
-                sc = hdr_scores(est, rad, mask=domain) if domain.any() else {}
-                sc["bracket_coverage"] = coverage
-                book.add(alg.name, sc, t.seconds)
+                sc = _radiance_scores(book, res, alg, est, err, t.seconds, rad, domain, coverage)
+                if sc is not None:
+                    book.add(alg.name, sc, t.seconds)
         res.plots["inverse response (green channel)"] = profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",
             note="gauge: f^-1(top level) = 1 for every curve")
