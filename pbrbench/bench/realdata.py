@@ -401,7 +401,7 @@ def _store(ev: Evaluation, results, task, algs, settings, report: bool, what: st
                         "algorithm_versions": {a.name: a.full_version for a in algs},
                         "algorithm_origins": {a.name: a.origin for a in algs}}}
     with Store(settings.store_path()) as store:
-        run_id = store.create_run(quality="real", config={"tasks": [task.name], "quality": "real", "dataset": what,
+        run_id = store.create_run(quality_name="real", config={"tasks": [task.name], "quality": "real", "dataset": what,
                                                            "task_info": info}, variant=None)
         run_dir = Path(settings.out) / run_id
         run_dir.mkdir(parents=True, exist_ok=True)

@@ -234,7 +234,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
     if cfg.resume:
         store.set_status(run_id, "running")
     else:
-        run_id = store.create_run(quality=quality.name, config=config, variant=variant)
+        run_id = store.create_run(quality_name=quality.name, config=config, variant=variant)
     heartbeat = lifecycle.start(store, run_id)   # process and heartbeat: a dead run reads interrupted
     run_dir = Path(settings.out) / run_id
     run_dir.mkdir(parents=True, exist_ok=True)

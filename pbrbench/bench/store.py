@@ -401,11 +401,11 @@ class Store:
         return applied
 
     # ------------------------------------------------------------------ runs
-    def create_run(self, *, quality: str, config: dict | None = None, variant: str | None = None,
+    def create_run(self, *, quality_name: str, config: dict | None = None, variant: str | None = None,
                    run_id: str | None = None, env: dict | None = None) -> str:
         run_id = run_id or new_run_id()
         env = environment() if env is None else env
-        row = dict(id=run_id, time=_now(), variant=variant, quality=quality,
+        row = dict(id=run_id, time=_now(), variant=variant, quality=quality_name,
                    config=json.dumps(config or {}, sort_keys=True, default=str), status="running")
         row.update({k: env.get(k) for k in ("git_revision", "pbrbench_version", "mitsuba_version",
                                               "drjit_version", "numpy_version", "machine")})
@@ -458,7 +458,7 @@ class Store:
             raise UserError(f"run {ref!r}: not in {self.path}; `pbrbench history` lists the runs")
         raise UserError(f"run {ref!r} is ambiguous ({', '.join(match[:5])}); give more of the id")
 
-    def runs(self, *, task: str | None = None, quality: str | None = None, limit: int | None = None) -> list[dict]:
+    def runs(self, *, task: str | None = None, quality_name: str | None = None, limit: int | None = None) -> list[dict]:
         """Runs, oldest first, with their number of scores (``task``: only runs that scored it)."""
         q = ("SELECT r.*, (SELECT count(*) FROM scores s WHERE s.run = r.id) AS n_scores, "
              "(SELECT group_concat(DISTINCT task) FROM scores s WHERE s.run = r.id) AS tasks FROM runs r")
@@ -466,9 +466,9 @@ class Store:
         if task:
             where.append("EXISTS (SELECT 1 FROM scores s WHERE s.run = r.id AND s.task = ?)")
             args.append(task)
-        if quality:
+        if quality_name:
             where.append("r.quality = ?")
-            args.append(quality)
+            args.append(quality_name)
         if where:
             q += " WHERE " + " AND ".join(where)
         q += " ORDER BY r.time, r.rowid"
@@ -558,15 +558,15 @@ class Store:
             out.append(d)
         return out
 
-    def metric_history(self, task: str, metric: str, *, quality: str | None = None) -> list[dict]:
+    def metric_history(self, task: str, metric: str, *, quality_name: str | None = None) -> list[dict]:
         """Per run (oldest first) and algorithm: the mean of ``metric`` over scenes and conditions."""
         q = ("SELECT r.id AS run, r.time AS time, s.algorithm AS algorithm, s.condition AS condition, "
              "avg(s.value) AS value, count(s.value) AS n FROM scores s JOIN runs r ON r.id = s.run "
              "WHERE s.task = ? AND s.metric = ?")
         args = [task, metric]
-        if quality:
+        if quality_name:
             q += " AND r.quality = ?"
-            args.append(quality)
+            args.append(quality_name)
         q += " GROUP BY r.id, s.algorithm, s.condition ORDER BY r.time, r.rowid"
         return [dict(r) for r in self.conn.execute(q, args)]
 

@@ -21,7 +21,7 @@ def run(args) -> int:
     from pbrbench.cli.common import open_store, settings
 
     with open_store(settings(args)) as store:
-        runs = store.runs(task=args.task, quality=args.quality, limit=args.limit)
+        runs = store.runs(task=args.task, quality_name=args.quality, limit=args.limit)
     if not runs:
         print("no runs stored" + (f" for task {args.task}" if args.task else ""))
         return 0

@@ -62,7 +62,7 @@ def run(args) -> int:
         from pbrbench.cli.common import settings
 
         store = Store(settings(args).store_path())
-        run_id = store.create_run(quality="perf", config={"perf_areas": chosen, "quick": args.quick})
+        run_id = store.create_run(quality_name="perf", config={"perf_areas": chosen, "quick": args.quick})
     failed = []
     for area in chosen:
         t0 = time.perf_counter()

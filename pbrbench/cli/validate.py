@@ -130,7 +130,7 @@ def run(args) -> int:
         from pbrbench.bench.store import Store
 
         with Store(st.store_path()) as store:
-            run_id = store.create_run(quality="validate", variant=None,
+            run_id = store.create_run(quality_name="validate", variant=None,
                                       config={"validate_quality": args.quality, "checks": args.checks or list(CHECKS)})
             store.add_job_result(run_id, f"validate|{args.quality}", "validate", to_scores(records, args.quality, seconds),
                                  seconds=seconds)

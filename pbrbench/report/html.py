@@ -318,7 +318,7 @@ def history_figures(store, run_id: str, info: dict, quality_name: str, out_dir: 
         metric = ti.get("headline_metric")
         if not metric:
             continue
-        rows = [r for r in store.metric_history(task, metric, quality=quality_name)]
+        rows = [r for r in store.metric_history(task, metric, quality_name=quality_name)]
         if not rows:
             continue
         runs = []

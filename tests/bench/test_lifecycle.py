@@ -52,7 +52,7 @@ def test_effective_status_of_running_runs():
 
 def test_store_reads_liveness_and_heartbeat_beats(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", env={})
+        rid = s.create_run(quality_name="draft", env={})
         hb = L.start(s, rid, interval=0.05)
         run = s.get_run(rid)
         assert run["pid"] == os.getpid() and run["host"] == socket.gethostname() and run["status"] == "running"
@@ -64,7 +64,7 @@ def test_store_reads_liveness_and_heartbeat_beats(tmp_path):
         assert L.finish(s, rid, "complete", heartbeat=hb)
         assert s.get_run(rid)["status"] == "complete"
         # a run of a dead process
-        rid2 = s.create_run(quality="draft", env={})
+        rid2 = s.create_run(quality_name="draft", env={})
         s.set_process(rid2, host=socket.gethostname(), pid=_dead_pid(), pid_start=None)
         r = s.get_run(rid2)
         assert r["status"] == "interrupted" and r["stored_status"] == "running"
@@ -152,7 +152,7 @@ def test_history_shows_interrupted_and_offers_resume(tmp_path, capsys):
     from pbrbench.cli.main import main
 
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", env={})
+        rid = s.create_run(quality_name="draft", env={})
         s.set_process(rid, host=socket.gethostname(), pid=_dead_pid(), pid_start=None)
     assert main(["history", "--store", str(tmp_path / "h.sqlite")]) == 0
     out = capsys.readouterr().out
@@ -191,7 +191,7 @@ def test_compare_with_an_interrupted_run_says_so_in_one_line(tmp_path, capsys):
 
     full = fake_run(tmp_path)
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", env={})
+        rid = s.create_run(quality_name="draft", env={})
         first = next(r for r in s.scores(full.run_id))
         s.add_job_result(rid, first["job"], first["task"], [r for r in s.scores(full.run_id) if r["job"] == first["job"]])
         s.set_process(rid, host=socket.gethostname(), pid=_dead_pid(), pid_start=None)
@@ -211,7 +211,7 @@ def test_a_lost_scheduler_records_interrupted_not_failed(tmp_path):
     from pbrbench.bench.executors import SchedulerLost
 
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", env={})
+        rid = s.create_run(quality_name="draft", env={})
         exc = SchedulerLost("tcp://127.0.0.1:1", "lost the connection")
         try:
             try:

@@ -59,7 +59,7 @@ def test_migration_added_later_is_applied(tmp_path, monkeypatch):
 
 def test_runs_scores_roundtrip_and_export(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", config={"tasks": ["t"]}, variant="scalar_rgb", env=ENV)
+        rid = s.create_run(quality_name="draft", config={"tasks": ["t"]}, variant="scalar_rgb", env=ENV)
         s.add_job_result(rid, "t|s|local|", "t", [score(value=0.5), score("nan_metric", float("nan"))], seconds=1.0)
         s.add_ground_truth(rid, "s", {"scene_hash": "h", "quality": "draft", "spp": 4, "resolution": [32, 32],
                                       "noise": {"radiance_rel_sd_rms": 0.01}, "wall_s": 0.2}, from_cache=False)
@@ -79,7 +79,7 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
 
 def test_job_result_replaces_and_resume_bookkeeping(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
-        rid = s.create_run(quality="draft", env=ENV)
+        rid = s.create_run(quality_name="draft", env=ENV)
         s.add_job_result(rid, "k1", "t", [score(value=1.0)])
         s.add_job_result(rid, "k1", "t", [score(value=2.0)])  # rerun of the same job: no duplicate
         s.add_job_result(rid, "k2", "t", [], error="boom")
@@ -92,8 +92,8 @@ def test_resolve_run_references(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
         with pytest.raises(UserError, match="no runs"):
             s.resolve_run(None)
-        a = s.create_run(quality="draft", run_id="20250101-000000-aaaa", env=ENV)
-        b = s.create_run(quality="draft", run_id="20250102-000000-bbbb", env=ENV)
+        a = s.create_run(quality_name="draft", run_id="20250101-000000-aaaa", env=ENV)
+        b = s.create_run(quality_name="draft", run_id="20250102-000000-bbbb", env=ENV)
         assert s.resolve_run(None) == b == s.resolve_run("latest")
         assert s.resolve_run("-2") == a
         assert s.resolve_run("20250101") == a
@@ -106,17 +106,17 @@ def test_resolve_run_references(tmp_path):
 def test_history_and_runs_filter(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
         for v in (1.0, 3.0):
-            rid = s.create_run(quality="draft", env=ENV)
+            rid = s.create_run(quality_name="draft", env=ENV)
             s.add_job_result(rid, "k", "t", [score(value=v, scene="x"), score(value=v + 1, scene="y")])
-        s.create_run(quality="standard", env=ENV)
-        h = s.metric_history("t", "rmse", quality="draft")
+        s.create_run(quality_name="standard", env=ENV)
+        h = s.metric_history("t", "rmse", quality_name="draft")
         assert [r["value"] for r in h] == [1.5, 3.5]
-        assert len(s.runs(task="t")) == 2 and len(s.runs()) == 3 and len(s.runs(quality="standard")) == 1
+        assert len(s.runs(task="t")) == 2 and len(s.runs()) == 3 and len(s.runs(quality_name="standard")) == 1
 
 
 def _writer(path, tag, n):
     with Store(path) as s:
-        rid = s.create_run(quality="draft", config={"w": tag}, env=ENV)
+        rid = s.create_run(quality_name="draft", config={"w": tag}, env=ENV)
         for i in range(n):
             s.add_job_result(rid, f"{tag}-{i}", "t", [score(value=float(i), scene=f"{tag}{i}", metric=m)
                                                       for m in ("a", "b", "c")])
@@ -151,9 +151,9 @@ def test_compare_directions(tmp_path, capsys):
     assert d == {"rmse": "better", "psnr": "worse", "same": "same", "gone": "only-a", "new": "only-b"}
     p = tmp_path / "h.sqlite"
     with Store(p) as s:
-        ra = s.create_run(quality="draft", env=ENV)
+        ra = s.create_run(quality_name="draft", env=ENV)
         s.add_job_result(ra, "k", "t", a)
-        rb = s.create_run(quality="draft", env=ENV)
+        rb = s.create_run(quality_name="draft", env=ENV)
         s.add_job_result(rb, "k", "t", b)
     assert main(["compare", ra, rb, "--store", str(p)]) == 0
     out = capsys.readouterr().out
@@ -162,7 +162,6 @@ def test_compare_directions(tmp_path, capsys):
 
 def test_perf_rows_become_scores():
     from pbrbench.cli.perf import direction, to_scores
-
     from pbrbench.perf import row
 
     rows = [row("b", "c", "m", "time", 0.5, "s", better="lower"), row("b", "c", "m", "mask IoU", 0.9, better="higher"),
@@ -195,10 +194,10 @@ def test_compare_uses_the_noise_rule_reads_two_stores_and_names_changed_scenes(t
     assert d["rounding"]["direction"] == "same" and d["flip"]["direction"] == "unstable"
     pa, pb = tmp_path / "a.sqlite", tmp_path / "b.sqlite"
     with Store(pa) as s:
-        ra = s.create_run(quality="draft", env=ENV)
+        ra = s.create_run(quality_name="draft", env=ENV)
         s.add_job_result(ra, "k", "t", a)
     with Store(pb) as s:
-        rb = s.create_run(quality="draft", env=ENV)
+        rb = s.create_run(quality_name="draft", env=ENV)
         s.add_job_result(rb, "k", "t", [dict(x, scene_hash="other") for x in b])
     assert main(["compare", ra, rb, "--store", str(pa), "--store-b", str(pb)]) == 0
     out = capsys.readouterr().out

@@ -15,7 +15,7 @@ from tests.corpus.faults import Fault, _FullConnection
 
 def _store_with_a_run(path):
     with Store(path) as s:
-        rid = s.create_run(quality="draft", env={})
+        rid = s.create_run(quality_name="draft", env={})
         s.add_job_result(rid, "job1", "t", [{"task": "t", "scene": "a", "algorithm": "x", "metric": "m", "value": 1.0}])
         s.set_status(rid, "complete")
     return rid
@@ -28,7 +28,7 @@ def test_read_only_store_reads_and_refuses_writes_in_one_line(tmp_path):
     with Store(p, readonly=True) as s:
         assert s.readonly and [r["id"] for r in s.runs()] == [rid] and len(s.scores(rid)) == 1
         with pytest.raises(DiskError, match="opened read-only") as e:
-            s.create_run(quality="draft", env={})
+            s.create_run(quality_name="draft", env={})
         assert "\n" not in str(e.value)
     assert p.read_bytes() == before
 

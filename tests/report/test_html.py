@@ -285,7 +285,7 @@ def test_interreflection_headline_has_a_row_group_per_scene_class_and_the_cost_s
                                "uncertainty": 0.001, "dof": 1e9})
     reg = builtin_registry({"interreflection": TASK})
     with Store(tmp_path / "h.sqlite") as st:
-        run = st.create_run(quality="draft", config={"task_info": task_info({"interreflection": TASK}, reg)}, env={})
+        run = st.create_run(quality_name="draft", config={"task_info": task_info({"interreflection": TASK}, reg)}, env={})
         st.add_job_result(run, "all", "interreflection", scores)
         st.set_status(run, "complete")
         index = write_report(st, run, out_dir=tmp_path / "site")
