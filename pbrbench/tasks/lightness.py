@@ -254,6 +254,8 @@ class LightnessTask(Task):
             full = np.full(img.shape[1:] if img.ndim == 3 else img.shape[1], np.nan)
             full[seg] = r1
             prof["reflectance: 1-D retinex of this row (Horn 1974)"] = full
+            if base == "local" and not mods and job.scene.split("[")[0] == CHAPTER_1D_FAMILY:
+                res.plots[FIG_1_11] = lightness_1d_figure(grey(img)[row, seg], seg.start, THRESHOLD)
             if "unoccluded_fraction" in gt:
                 prof["unoccluded fraction"] = gt["unoccluded_fraction"][row]
             series = {k: np.asarray(v, float).mean(axis=-1) if np.ndim(v) == 2 else v for k, v in prof.items()}
@@ -262,6 +264,27 @@ class LightnessTask(Task):
                 note="row crossing the cast shadow" if "unoccluded_fraction" in gt else "middle row")
         res.scores = book.scores
         return res
+
+
+CHAPTER_1D_FAMILY = "mondrian_grey"
+FIG_1_11 = ("Fig 1.11 lightness in 1-D (Horn 1974) along a row of the grey Mondrian: the log image, its "
+            "derivative, the derivative thresholded (paint edges kept, shading gradients dropped) and its "
+            "integral, the log reflectance up to the brightest paper")
+
+
+def lightness_1d_figure(row, start: int, threshold: float) -> dict:
+    """Fig 1.11's four curves for one image row (grey values > 0): ``log C``, ``d = diff log C``,
+    ``d`` where ``|d| > threshold`` (else 0), and its running sum with the brightest point at 0."""
+    c = np.log(np.maximum(np.asarray(row, float), 1e-12))
+    d = np.diff(c)
+    dt = np.where(np.abs(d) > threshold, d, 0.0)
+    integral = np.concatenate([[0.0], np.cumsum(dt)])
+    pad = np.concatenate
+    return profile_plot(np.arange(start, start + c.size),
+                        {"log image": c, "log derivative": pad([d, [np.nan]]),
+                         f"thresholded (|d| > {threshold:g})": pad([dt, [np.nan]]),
+                         "integral: log reflectance (brightest = 0)": integral - integral.max()},
+                        "column (pixels)", "natural log", note=f"threshold {threshold:g} per pixel")
 
 
 TASK = LightnessTask()

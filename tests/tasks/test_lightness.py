@@ -161,3 +161,20 @@ def test_a_draft_run_of_lightness_scores_the_ambient_condition_with_an_uncertain
     col = h["conditions"].index("local+ambient0.1 − local")
     cell = next(r for r in h["rows"] if r["algorithm"] == "blake1985")["cells"][col]
     assert cell["n"] == 3 and np.isfinite(cell["value"]) and np.isfinite(cell["se"]) and " ± " in cell["text"]
+
+
+def test_fig_1_11_integrates_the_thresholded_log_derivative():
+    """Fig 1.11 on a row of two papers under a smooth gradient: the thresholded derivative keeps
+    the paint step only, and its integral is the log reflectance (the brighter paper at 0)."""
+    from pbrbench.tasks.lightness import lightness_1d_figure
+
+    x = np.arange(40)
+    refl = np.where(x < 20, 0.8, 0.2)
+    shading = 1.0 + 0.005 * x
+    f = lightness_1d_figure(refl * shading, 3, 0.1)
+    s = f["series"]
+    thr = np.array(s["thresholded (|d| > 0.1)"][:-1], float)
+    assert np.count_nonzero(thr) == 1 and np.isclose(thr[19], np.log(0.2 / 0.8) + np.log(shading[20] / shading[19]))
+    integral = np.array(s["integral: log reflectance (brightest = 0)"], float)
+    assert np.allclose(integral[:20], 0.0) and np.allclose(integral[20:], thr[19])
+    assert f["x"][0] == 3 and len(f["x"]) == 40
