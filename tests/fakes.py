@@ -251,3 +251,69 @@ def with_groups(gt, sigma: float, *, seed: int = 0, groups: int = 4):
     if "radiance" in arr and "direct" in arr and "indirect" in arr:
         arr["indirect"] = arr["radiance"] - arr["direct"]
     return GroundTruth(arr, dict(gt.meta))
+
+
+# ------------------------------------------------------------------ one photometric-stereo job
+def _ps_task_class():
+    from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
+
+    class TinyPS(PhotometricStereoTask):
+        """The photometric-stereo task on one synthetic sphere (no renderer)."""
+
+        fail_once = None   # a file: the job fails while it does not exist (then it is created)
+
+        def jobs(self, quality):
+            return [ps_job("local", scene="s")]
+
+        def run_job(self, job, gts, **kw):
+            if self.fail_once is not None and not self.fail_once.exists():
+                self.fail_once.write_text("failed once")
+                raise RuntimeError("interrupted")
+            return super().run_job(job, gts, **kw)
+
+    TinyPS.__module__, TinyPS.__qualname__ = __name__, "TinyPS"   # picklable by reference
+    return TinyPS
+
+
+def __getattr__(name):       # TinyPS made on first use: importing tests.fakes imports no task
+    if name == "TinyPS":
+        globals()["TinyPS"] = cls = _ps_task_class()
+        return cls
+    raise AttributeError(name)
+
+
+class SphereSource(FakeSource):
+    """The synthetic sphere of :func:`ps_gt` for every scene; ``groups``: with sample groups
+    (relative noise 0.01), so the jobs get standard errors."""
+
+    def __init__(self, root, quality=DRAFT, *, groups: bool = False):
+        super().__init__(root, quality)
+        self.groups = groups
+
+    def load(self, spec):
+        gt, _ = ps_gt()
+        if self.groups:
+            gt = with_groups(gt, 0.01)
+        gt.meta["scene_hash"] = spec.content_hash()
+        return gt
+
+
+class SlowTask(FakeTask):
+    """:class:`FakeTask` on 6 scenes (12 jobs) whose jobs append ``pid ppid job`` to a log file
+    when they start and then sleep ``delay`` seconds; the scores depend on neither (for the Dask
+    executor's tests and fault corpus)."""
+
+    scenes = tuple(f"scene_{c}" for c in "abcdef")
+
+    def __init__(self, delay: float = 0.0, log: str | None = None):
+        self.delay, self.log = delay, log
+
+    def run_job(self, job, gts, **kw):
+        import os
+        import time
+
+        if self.log:
+            with open(self.log, "a") as fh:
+                fh.write(f"{os.getpid()} {os.getppid()} {job.key}\n")
+        time.sleep(self.delay)
+        return super().run_job(job, gts, **kw)

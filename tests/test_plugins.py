@@ -27,8 +27,7 @@ from pbrbench.registry import (
     algorithm,
     parse_algorithm_spec,
 )
-from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
-from tests.fakes import FakeSource, ps_gt, ps_job, settings_for
+from tests.fakes import SphereSource, TinyPS, ps_gt, settings_for
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -81,26 +80,6 @@ def chatty(images, lights, *, mask=None):
 '''
 
 
-class TinyPS(PhotometricStereoTask):
-    """The photometric-stereo task on one synthetic sphere (no renderer)."""
-
-    fail_once = None   # a file: the job fails while it does not exist (then it is created)
-
-    def jobs(self, quality):
-        return [ps_job("local", scene="s")]
-
-    def run_job(self, job, gts, **kw):
-        if self.fail_once is not None and not self.fail_once.exists():
-            self.fail_once.write_text("failed once")
-            raise RuntimeError("interrupted")
-        return super().run_job(job, gts, **kw)
-
-
-class SphereSource(FakeSource):
-    def load(self, spec):
-        gt, _ = ps_gt()
-        gt.meta["scene_hash"] = spec.content_hash()
-        return gt
 
 
 def _run(tmp_path, specs=(), *, task=None, limit=60.0, entry_points=True, **kw):

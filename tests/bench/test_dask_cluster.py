@@ -23,7 +23,7 @@ pytest.importorskip("distributed", reason="Dask distributed is not installed (pi
 from pbrbench.bench.executors import DaskExecutor  # noqa: E402
 from pbrbench.bench.run import RunConfig, run_benchmark  # noqa: E402
 from pbrbench.settings import Settings  # noqa: E402
-from tests.fakes import FakeSource, FakeTask, settings_for  # noqa: E402
+from tests.fakes import FakeSource, SlowTask, settings_for  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
@@ -31,23 +31,6 @@ ROOT = str(Path(__file__).resolve().parents[2])
 DELAY = 1.0        # seconds each job sleeps on the cluster, so that a worker dies mid-job
 START_TIMEOUT = 120
 RUN_TIMEOUT = 300
-
-
-class SlowTask(FakeTask):
-    """:class:`tests.fakes.FakeTask` on 6 scenes (12 jobs) whose jobs append ``pid ppid job`` to a
-    log file when they start and then sleep ``delay`` seconds; the scores do not depend on either."""
-
-    scenes = tuple(f"scene_{c}" for c in "abcdef")
-
-    def __init__(self, delay: float = 0.0, log: str | None = None):
-        self.delay, self.log = delay, log
-
-    def run_job(self, job, gts, **kw):
-        if self.log:
-            with open(self.log, "a") as f:
-                f.write(f"{os.getpid()} {os.getppid()} {job.key}\n")
-        time.sleep(self.delay)
-        return super().run_job(job, gts, **kw)
 
 
 class CountingDaskExecutor(DaskExecutor):

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from pbrbench.settings import Settings
-from tests.fakes import FakeSource, FakeTask, settings_for
+from tests.fakes import FakeSource, settings_for
+from tests.fakes import SlowTask as _SlowTask
 
 ROOT = str(Path(__file__).resolve().parents[2])
 DELAY = 0.3            # seconds each job sleeps on the cluster, so that a kill lands mid-run
@@ -34,21 +35,10 @@ START_TIMEOUT = 120
 CONNECT_TIMEOUT = "2s"  # Dask's connect timeout in the cases (an address that never answers)
 
 
-class SlowTask(FakeTask):
-    """:class:`tests.fakes.FakeTask` on 4 scenes (8 jobs) whose jobs append their key to a log when
-    they start and then sleep ``delay`` seconds; the scores depend on neither."""
+class SlowTask(_SlowTask):
+    """:class:`tests.fakes.SlowTask` on 4 scenes (8 jobs)."""
 
     scenes = tuple(f"scene_{c}" for c in "abcd")
-
-    def __init__(self, delay: float = 0.0, log: str | None = None):
-        self.delay, self.log = delay, log
-
-    def run_job(self, job, gts, **kw):
-        if self.log:
-            with open(self.log, "a") as f:
-                f.write(f"{job.key}\n")
-        time.sleep(self.delay)
-        return super().run_job(job, gts, **kw)
 
 
 N_JOBS = len(SlowTask().jobs(None))

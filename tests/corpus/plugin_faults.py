@@ -37,29 +37,11 @@ def solve(images, lights, *, mask=None):
 
 
 def _task_and_source():
-    from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
-    from tests.fakes import FakeSource, ps_gt, ps_job, with_groups
+    from functools import partial
 
-    class TinyPS(PhotometricStereoTask):
-        fail_once = None
+    from tests.fakes import SphereSource, TinyPS
 
-        def jobs(self, quality):
-            return [ps_job("local", scene="s")]
-
-        def run_job(self, job, gts, **kw):
-            if self.fail_once is not None and not self.fail_once.exists():
-                self.fail_once.write_text("failed once")
-                raise RuntimeError("interrupted")
-            return super().run_job(job, gts, **kw)
-
-    class GroupSource(FakeSource):
-        def load(self, spec):
-            gt, _ = ps_gt()
-            gt = with_groups(gt, 0.01)
-            gt.meta["scene_hash"] = spec.content_hash()
-            return gt
-
-    return TinyPS, GroupSource
+    return TinyPS, partial(SphereSource, groups=True)
 
 
 @contextlib.contextmanager
