@@ -312,6 +312,7 @@ class HDRTask(Task):
             kw = {"truth": br} if alg.kind == "floor" else {}
             if "seed" in method_options(alg.fn) and "seed" not in alg.options:
                 kw["seed"] = seed
+            est = None
             with Timer() as t:
                 resp, _, err = call(alg, images, br.exposure_times, quality=quality,
                                       check=lambda o: _check_response(o, rad.shape[-1]), **kw)

@@ -226,7 +226,7 @@ class Shared:
         def build(d):
             (d / "scenes").mkdir()
             for fam in RUN_FAMILIES:
-                shutil.copy2(self.src / "pbrbench" / "scene" / "library" / f"{fam}.toml", d / "scenes")
+                shutil.copy2(self.src / "scenes" / f"{fam}.toml", d / "scenes")
             r = _run([sys.executable, "-m", "pbrbench", "run", "--tasks", "lightness", "--quality", "draft",
                       "--cache", str(d / "cache"), "--store", str(d / "h.sqlite"), "--out", str(d / "out"),
                       "--no-report"], self.src, {"PBRBENCH_SCENES": str(d / "scenes")}, cwd=d)

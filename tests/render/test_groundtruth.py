@@ -119,7 +119,8 @@ def test_scalar_variant_ground_truth_has_the_same_mask_as_llvm(tmp_path):
     code = ("import sys, json; from pbrbench.render import variant; from pbrbench.settings import Settings; "
             "variant.configure(Settings.from_env(variant=sys.argv[1])); "
             "from pbrbench.render.groundtruth import render_ground_truth; from pbrbench.scene.load import resolve; "
-            "(s,) = resolve(['sphere_5lights']); g = render_ground_truth(s, DRAFT, variant=sys.argv[1]); "
+            "from pbrbench.quality import get_quality; "
+            "(s,) = resolve(['sphere_5lights']); g = render_ground_truth(s, get_quality('draft'), variant=sys.argv[1]); "
             "print(json.dumps([int(g.mask.sum()), float(g['albedo'][g.mask].mean())]))")
     out = {}
     for v in ("scalar_rgb", "llvm_ad_rgb"):
