@@ -163,6 +163,23 @@ def _radiance_scores(book, res, alg, est, err, seconds, rad, domain, coverage) -
     return sc
 
 
+MERGE_SEP = "+merge:"
+
+
+def default_merge() -> str:
+    """``merge_hdr``'s default merge method (its signature decides it)."""
+    import inspect
+
+    from pbrbench.infer.hdr import merge_hdr
+
+    return inspect.signature(merge_hdr).parameters["method"].default
+
+
+def merge_of(name: str) -> str:
+    """The merge an algorithm's response is merged with: ``<calibration>+merge:<merge>``, else the default."""
+    return name.partition(MERGE_SEP)[2] or default_merge()
+
+
 def true_response(images, exposure_times, *, truth):
     """``floor:true_response``: the camera's own inverse response (``truth`` is the bracket)."""
     from pbrbench.infer.hdr import CameraResponse
@@ -207,6 +224,13 @@ class HDRTask(Task):
         # draft: Mitsunaga-Nayar with a fixed degree instead of its held-out degree search (about 20x slower)
         budgets = {"mitsunaga1999": {"draft": {"degree": 5}}}
         out = [Algorithm(n, self.name, fn, budgets=budgets.get(n, {})) for n, fn in CALIBRATION_METHODS.items()]
+        # calibration x merge: each calibration merged by every other merge of the table (the plain
+        # entry uses merge_hdr's default), on the reference condition only, where the merges differ
+        # by their weighting alone
+        out += [Algorithm(f"{n}{MERGE_SEP}{m}", self.name, fn, budgets=budgets.get(n, {}), variant_of=n,
+                          conditions=(self.reference_condition,), figures=False,
+                          description=f"{n} calibration, {m} merge")
+                for n, fn in CALIBRATION_METHODS.items() for m in MERGE_METHODS if m != default_merge()]
         # every merge of the methods table, given the camera's true response: the merges compared alone
         out += [Algorithm(f"merge:{n}", self.name, fn, interface="merge", figures=False,
                           description=f"the {n} merge with the true inverse response (the merge alone)")
@@ -319,7 +343,7 @@ class HDRTask(Task):
                 if err is None:
                     tt = resp.exposure_times if getattr(resp, "exposure_times", None) is not None else br.exposure_times
                     try:
-                        est = merge_hdr(br.images, tt, resp)
+                        est = merge_hdr(br.images, tt, resp, method=merge_of(alg.name))
                     except Exception as e:  # noqa: BLE001 - an unusable response is the algorithm's failure
                         err = one_line(e)
             sc = _radiance_scores(book, res, alg, est, err, t.seconds, rad, domain, coverage)

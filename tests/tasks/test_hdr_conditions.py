@@ -108,3 +108,20 @@ def test_every_merge_of_the_methods_table_is_scored_with_the_true_response():
     for n in MERGE_METHODS:
         assert np.isfinite(got[(f"merge:{n}", "log2_rmse")]), n
     assert got[(f"merge:{DEFAULT_MERGE}", "log2_rmse")] == got[("floor:true_response", "log2_rmse")]
+
+
+def test_calibration_times_merge_is_scored_where_the_merges_differ():
+    """Each calibration is also merged by the table's other merges (on the reference condition):
+    the same response, another merge, another radiance."""
+    from pbrbench.infer.hdr import CALIBRATION_METHODS, MERGE_METHODS
+    from pbrbench.tasks.hdr import MERGE_SEP, TASK, default_merge
+
+    others = [m for m in MERGE_METHODS if m != default_merge()]
+    names = {a.name for a in TASK.builtin_algorithms() if a.variant_of in CALIBRATION_METHODS}
+    assert names == {f"{n}{MERGE_SEP}{m}" for n in CALIBRATION_METHODS for m in others}
+    job = next(j for j in TASK.jobs(get_quality("draft")) if j.condition == TASK.reference_condition)
+    got = {(s.algorithm, s.metric): s.value for s in run_task(TASK, job, {job.scene: hdr_gt()}).scores}
+    for m in others:
+        a, b = got[("debevec1997", "log2_rmse")], got[(f"debevec1997{MERGE_SEP}{m}", "log2_rmse")]
+        assert np.isfinite(b) and a != b
+        assert got[("debevec1997", "response_rmse")] == got[(f"debevec1997{MERGE_SEP}{m}", "response_rmse")]
