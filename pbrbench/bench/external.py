@@ -53,6 +53,7 @@ from pathlib import Path, PurePosixPath
 import numpy as np
 
 from pbrbench.errors import UserError
+from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
@@ -549,14 +550,6 @@ def _find(folder: Path, name: str) -> Path | None:
     return None
 
 
-def _fmt_bytes(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if n < 1024 or unit == "TiB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
-        n /= 1024
-    return f"{n:.2f} TiB"  # pragma: no cover
-
-
 def _check_declared(path, shape, what: str) -> None:
     """Refuse a file whose header announces more than :data:`MAX_PREDICTION_BYTES` (as float64)."""
     count = 1
@@ -569,29 +562,10 @@ def _check_declared(path, shape, what: str) -> None:
 
 
 def _png_shape(path) -> tuple:
-    import struct
+    from pbrbench.io import png_info
 
-    from pbrbench import io
-
-    with open(path, "rb") as f:
-        head = f.read(33)
-    if head[:8] != io.PNG_SIGNATURE or head[12:16] != b"IHDR" or len(head) < 33:
-        raise ValueError(f"{path}: not a PNG file (it starts with {head[:8]!r}); write a PNG, .exr or .npy file")
-    w, h, depth, ctype = struct.unpack(">IIBB", head[16:26])
-    return (h, w, io._PNG_CHANNELS.get(ctype, 4))
-
-
-def _exr_shape(path) -> tuple:
-    import OpenEXR
-
-    try:
-        with OpenEXR.File(str(path), header_only=True) as f:   # the header lives as long as the file
-            h = f.header()
-            (x0, y0), (x1, y1) = (tuple(int(v) for v in c) for c in h["dataWindow"])
-            channels = len(h.get("channels") or ())
-    except Exception as e:  # noqa: BLE001 - OpenEXR raises plain exceptions
-        raise ValueError(f"{path}: not a readable EXR file ({' '.join(str(e).split())[:160]}); write it again") from None
-    return (y1 - y0 + 1, x1 - x0 + 1, max(channels, 1))
+    info = png_info(path)
+    return (info["height"], info["width"], info["channels"])
 
 
 def _pfm_shape(path) -> tuple:
@@ -635,7 +609,7 @@ def _read_file(path: Path, real: Path) -> np.ndarray:
             return read_npy(real, where=str(path), max_bytes=MAX_PREDICTION_BYTES)
         except SceneError as e:
             raise ValueError(str(e).replace("a scene data file", "a prediction file")) from None
-    shape = {".png": _png_shape, ".exr": _exr_shape, ".pfm": _pfm_shape, ".tif": _tif_shape,
+    shape = {".png": _png_shape, ".exr": io.exr_shape, ".pfm": _pfm_shape, ".tif": _tif_shape,
              ".tiff": _tif_shape}[suffix](real)
     _check_declared(path, shape, "header")
     return np.asarray(io.read_image(real))

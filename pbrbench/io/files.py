@@ -89,11 +89,11 @@ def ensure_dir(p: str | os.PathLike) -> Path:
 
 def fmt_bytes(n: float) -> str:
     """``n`` bytes in readable units (``"256.00 MiB"``)."""
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
-        if n < 1024 or unit == "TiB":
+    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
+        if n < 1024 or unit == "PiB":
             return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
         n /= 1024
-    return f"{n:.2f} TiB"  # pragma: no cover
+    return f"{n:.2f} PiB"  # pragma: no cover
 
 
 def check_size(path, shape: tuple, itemsize: int, limit: int = MAX_IMAGE_BYTES) -> None:

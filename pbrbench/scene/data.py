@@ -25,18 +25,12 @@ from pathlib import Path
 import numpy as np
 
 from pbrbench.errors import SceneError
+from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.memo import Memo
 
 MAX_DATA_BYTES = 256 * 2**20   # largest array a scene data file may hold
 MAX_HEIGHT = 1e6               # largest |height| of a height array (scene units, like positions)
 
-
-def _fmt_bytes(n: float) -> str:
-    for unit in ("B", "KiB", "MiB", "GiB", "TiB", "PiB"):
-        if n < 1024 or unit == "PiB":
-            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.2f} {unit}"
-        n /= 1024
-    return f"{n:.2f} PiB"  # pragma: no cover
 
 
 class DataDir(str):
