@@ -593,8 +593,7 @@ def _tif_shape(path) -> tuple:
 def _read_file(path: Path, real: Path) -> np.ndarray:
     """The array in one prediction file, its header checked before its data is read."""
     from pbrbench import io
-    from pbrbench.errors import SceneError
-    from pbrbench.scene.data import read_npy
+    from pbrbench.io.images import read_npy
 
     suffix = path.suffix.lower()
     if suffix == ".txt":
@@ -605,10 +604,7 @@ def _read_file(path: Path, real: Path) -> np.ndarray:
         except (ValueError, IndexError):
             raise ValueError(f"{path}: not a number; write one number") from None
     if suffix == ".npy":
-        try:
-            return read_npy(real, where=str(path), max_bytes=MAX_PREDICTION_BYTES)
-        except SceneError as e:
-            raise ValueError(str(e).replace("a scene data file", "a prediction file")) from None
+        return read_npy(real, where=str(path), limit=MAX_PREDICTION_BYTES, what="a prediction file")
     shape = {".png": _png_shape, ".exr": io.exr_shape, ".pfm": _pfm_shape, ".tif": _tif_shape,
              ".tiff": _tif_shape}[suffix](real)
     _check_declared(path, shape, "header")

@@ -1,6 +1,6 @@
 """Every image format but EXR, read and written without loss: PNG (Pillow), TIFF (tifffile),
 JPEG / BMP / TGA / PPM / PGM (Pillow), PFM (a small reader here: no installed library reads it)
-and ``.npy`` (the header checks of :func:`pbrbench.scene.data.read_npy`: no pickle, a size limit).
+and ``.npy`` (:func:`read_npy`, the one reader of array files: no pickle, a size limit).
 
 Every reader looks at the header first (Pillow's and tifffile's lazy open, the ``.npy`` and PFM
 headers) and refuses a file whose decoded pixels would exceed
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pbrbench.io.files import MAX_IMAGE_BYTES, TooLarge, atomic_path, check_size
+from pbrbench.io.files import MAX_IMAGE_BYTES, TooLarge, atomic_path, check_size, fmt_bytes
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 _PNG_CHANNELS = {0: 1, 2: 3, 3: 1, 4: 2, 6: 4}   # PNG colour type -> samples per pixel
@@ -298,35 +298,58 @@ def write_image(path: str | os.PathLike, a: np.ndarray) -> None:
 
 
 # ----------------------------------------------------------------------------- any image
-def _read_npy(p: Path) -> np.ndarray:
-    """A ``.npy`` file with the checks of :func:`pbrbench.scene.data.read_npy` (which lies a layer
-    above): no pickle, a plain real dtype, a declared size within :data:`MAX_IMAGE_BYTES` and
-    within the file, all checked on the header before the data is read."""
+def read_npy(path: str | os.PathLike, *, where: str, limit: int = MAX_IMAGE_BYTES,
+             what: str = "an array file") -> np.ndarray:
+    """A real-valued array from the ``.npy`` file at ``path``, read without unpickling and with
+    its header checked against the file size and ``limit`` bytes before anything is allocated;
+    ``ValueError`` (prefixed with ``where``; ``what`` names the kind of file in the size message)
+    otherwise.  The one ``.npy`` reader: scene data files, prediction files and images use it."""
     fmt = np.lib.format
-    with open(p, "rb") as f:
-        try:
-            version = fmt.read_magic(f)
-            shape, _fortran, dtype = (fmt.read_array_header_1_0(f) if version == (1, 0)
-                                      else fmt.read_array_header_2_0(f))
-        except Exception as e:  # noqa: BLE001 - any damage of the header
-            raise ValueError(f"{p}: not a readable .npy file ({' '.join(str(e).split())[:120]}); save it with "
-                             "numpy.save") from None
-        if dtype.hasobject:
-            raise ValueError(f"{p}: holds Python objects (dtype object, stored as a pickle); pbrbench never unpickles "
-                             "data files: save a numeric array, e.g. numpy.save(path, np.asarray(a, float))")
-        if dtype.names is not None or dtype.subdtype is not None or dtype.kind not in "biuf":
-            raise ValueError(f"{p}: dtype {dtype} is not a plain real number type; save a numeric array")
-        check_size(p, tuple(shape), dtype.itemsize)
-        nbytes = int(np.prod(shape, dtype=np.int64)) * dtype.itemsize
-        left = os.fstat(f.fileno()).st_size - f.tell()
-        if left < nbytes:
-            raise ValueError(f"{p}: truncated: the header announces {nbytes} bytes of data, the file holds {left}; "
-                             "save the array again with numpy.save")
-        f.seek(0)
-        try:
-            return np.asarray(fmt.read_array(f, allow_pickle=False))
-        except (ValueError, OSError) as e:
-            raise ValueError(f"{p}: not a readable .npy file ({e}); save the array again with numpy.save") from None
+    try:
+        with open(path, "rb") as f:
+            try:
+                version = fmt.read_magic(f)
+            except ValueError:
+                f.seek(0)
+                head = f.read(8)
+                raise ValueError(f"{where}: not a NumPy .npy file (it starts with {head!r}); save the array with "
+                                 "numpy.save") from None
+            try:
+                if version == (1, 0):
+                    shape, fortran, dtype = fmt.read_array_header_1_0(f)
+                else:
+                    shape, fortran, dtype = fmt.read_array_header_2_0(f)
+            except (ValueError, SyntaxError, TypeError) as exc:
+                raise ValueError(f"{where}: damaged .npy header ({exc}); save the array again with numpy.save") from None
+            if dtype.hasobject:
+                raise ValueError(f"{where}: holds Python objects (dtype object, stored as a pickle); pbrbench never "
+                                 "unpickles data files: save a numeric array, e.g. numpy.save(path, np.asarray(a, float))")
+            if dtype.names is not None or dtype.subdtype is not None:
+                raise ValueError(f"{where}: has the structured dtype {dtype}; save a plain numeric array")
+            if dtype.kind == "c":
+                raise ValueError(f"{where}: holds complex values (dtype {dtype}); save real values "
+                                 "(np.real(a) or np.abs(a))")
+            if dtype.kind not in "biuf":
+                raise ValueError(f"{where}: dtype {dtype} is not a number type; save a float array")
+            count = 1
+            for n in shape:
+                count *= int(n)
+            nbytes = count * dtype.itemsize
+            if nbytes > limit:
+                raise ValueError(f"{where}: its header asks for {fmt_bytes(nbytes)} (shape {tuple(shape)}, {dtype}), above "
+                                 f"the {fmt_bytes(limit)} limit for {what}; save a smaller array")
+            left = os.fstat(f.fileno()).st_size - f.tell()
+            if left < nbytes:
+                raise ValueError(f"{where}: truncated: the header announces {nbytes} bytes of data (shape {tuple(shape)}, "
+                                 f"{dtype}) but the file holds {left}; save the array again with numpy.save")
+            try:
+                f.seek(0)
+                a = fmt.read_array(f, allow_pickle=False) if count else np.zeros(shape, dtype)
+            except (ValueError, OSError) as exc:
+                raise ValueError(f"{where}: cannot be read ({exc}); save the array again with numpy.save") from None
+    except OSError as exc:
+        raise ValueError(f"{where}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
+    return np.asarray(a)
 
 
 def _read_tiff(p: Path) -> np.ndarray:
@@ -430,7 +453,7 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
 
         return read_exr_image(p)
     if suffix == ".npy":
-        return _read_npy(p)
+        return read_npy(p, where=str(p), what="an image file")
     if suffix == ".png":
         return read_png(p)
     if suffix == ".pfm":

@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 from pbrbench.errors import SceneError
-from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.memo import Memo
 
 MAX_DATA_BYTES = 256 * 2**20   # largest array a scene data file may hold
@@ -83,55 +82,16 @@ def resolve_data_path(base_dir: str | os.PathLike, rel: str, *, where: str, extr
 
 
 def read_npy(path: str | os.PathLike, *, where: str, max_bytes: int | None = None) -> np.ndarray:
-    """A real-valued array from the ``.npy`` file at ``path``, read without unpickling and with
-    its header checked against the file size and ``max_bytes`` before anything is allocated."""
-    limit = MAX_DATA_BYTES if max_bytes is None else max_bytes
-    fmt = np.lib.format
+    """A real-valued array from the ``.npy`` file at ``path`` (:func:`pbrbench.io.read_npy`: no
+    unpickling, the header checked against the file size and ``max_bytes`` first); a
+    :class:`SceneError` naming ``where`` otherwise."""
+    from pbrbench.io.images import read_npy as read
+
     try:
-        with open(path, "rb") as f:
-            try:
-                version = fmt.read_magic(f)
-            except ValueError:
-                f.seek(0)
-                head = f.read(8)
-                raise SceneError(f"{where}: not a NumPy .npy file (it starts with {head!r}); save the array with "
-                                 "numpy.save") from None
-            try:
-                if version == (1, 0):
-                    shape, fortran, dtype = fmt.read_array_header_1_0(f)
-                else:
-                    shape, fortran, dtype = fmt.read_array_header_2_0(f)
-            except (ValueError, SyntaxError, TypeError) as exc:
-                raise SceneError(f"{where}: damaged .npy header ({exc}); save the array again with numpy.save") from None
-            if dtype.hasobject:
-                raise SceneError(f"{where}: holds Python objects (dtype object, stored as a pickle); pbrbench never "
-                                 "unpickles data files: save a numeric array, e.g. numpy.save(path, np.asarray(a, float))")
-            if dtype.names is not None or dtype.subdtype is not None:
-                raise SceneError(f"{where}: has the structured dtype {dtype}; save a plain numeric array")
-            if dtype.kind == "c":
-                raise SceneError(f"{where}: holds complex values (dtype {dtype}); save real values "
-                                 "(np.real(a) or np.abs(a))")
-            if dtype.kind not in "biuf":
-                raise SceneError(f"{where}: dtype {dtype} is not a number type; save a float array")
-            count = 1
-            for n in shape:
-                count *= int(n)
-            nbytes = count * dtype.itemsize
-            if nbytes > limit:
-                raise SceneError(f"{where}: its header asks for {_fmt_bytes(nbytes)} (shape {tuple(shape)}, {dtype}), above "
-                                 f"the {_fmt_bytes(limit)} limit for a scene data file; save a smaller array")
-            left = os.fstat(f.fileno()).st_size - f.tell()
-            if left < nbytes:
-                raise SceneError(f"{where}: truncated: the header announces {nbytes} bytes of data (shape {tuple(shape)}, "
-                                 f"{dtype}) but the file holds {left}; save the array again with numpy.save")
-            try:
-                f.seek(0)
-                a = fmt.read_array(f, allow_pickle=False) if count else np.zeros(shape, dtype)
-            except (ValueError, OSError) as exc:
-                raise SceneError(f"{where}: cannot be read ({exc}); save the array again with numpy.save") from None
-    except OSError as exc:
-        raise SceneError(f"{where}: cannot be read ({exc.strerror or exc}); check the file's permissions") from None
-    return np.asarray(a)
+        return read(path, where=where, limit=MAX_DATA_BYTES if max_bytes is None else max_bytes,
+                    what="a scene data file")
+    except ValueError as exc:
+        raise SceneError(str(exc)) from None
 
 
 def check_height(a: np.ndarray, *, where: str) -> np.ndarray:
