@@ -29,12 +29,35 @@ def cache_dir(tmp_path_factory) -> Path:
         p = Path(env)
         p.mkdir(parents=True, exist_ok=True)
         return p
-    return tmp_path_factory.mktemp("render-cache")
+    root = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):   # one cache for all the workers of this run
+        root = root.parent
+    p = root / "render-cache"
+    p.mkdir(parents=True, exist_ok=True)
+    return p
 
 
 @pytest.fixture(scope="session")
 def python_exe() -> str:
     return sys.executable
+
+
+# ----------------------------------------------------------------------------- scheduling
+def pytest_collection_modifyitems(config, items):
+    """The tests marked ``longest`` (a minute or more, or tens of seconds) first, each followed by
+    one ordinary test: pytest-xdist (``-n``, pyproject.toml's addopts, ``--maxschedchunk 1``) hands
+    each worker two tests to start with, so the longest tests start at once on different workers
+    and the rest fill in around them.  Without xdist only the order changes."""
+    longest = [it for it in items if it.get_closest_marker("longest")]
+    if not longest:
+        return
+    rest = [it for it in items if not it.get_closest_marker("longest")]
+    front = []
+    for it in longest:
+        front.append(it)
+        if rest:
+            front.append(rest.pop(0))
+    items[:] = front + rest
 
 
 # ----------------------------------------------------------------------------- allowed skips

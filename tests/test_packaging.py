@@ -17,6 +17,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 @pytest.mark.slow
 @pytest.mark.render
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_wheel_outside_the_checkout_lists_scenes_and_runs_draft(tmp_path, cache_dir):
     whl = tmp_path / "wheel"
     p = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "-w", str(whl), str(ROOT)],

@@ -67,6 +67,7 @@ def _key(s):
 
 
 @pytest.mark.render
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_local_cluster_matches_local_executor(tmp_path):
     ex = DaskExecutor(scheduler=None, workers=2, variant=None, settings=Settings.from_env())
     try:

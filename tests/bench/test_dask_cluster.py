@@ -113,6 +113,7 @@ def _score_table(outcome) -> dict:
             for s in outcome.scores}
 
 
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_a_worker_killed_mid_run_loses_no_scores(tmp_path):
     dask = _dask_cli()
     procs: list[subprocess.Popen] = []

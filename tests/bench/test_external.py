@@ -346,6 +346,7 @@ def test_readme_of_an_export_says_what_to_write(tmp_path):
 
 
 @pytest.mark.render
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_the_commands_on_draft_renders_round_trip_exactly(tmp_path, cache_dir, capsys):
     """`pbrbench run --algorithm` (a .py plugin that crashes beside one that works), `pbrbench export`,
     an external program, `pbrbench evaluate`: the evaluated scores equal the run's built-in ones."""

@@ -24,6 +24,7 @@ from tests.fakes import settings_for
 pytestmark = [pytest.mark.render, pytest.mark.slow]
 
 
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_draft_scores_match_baselines(tmp_path, cache_dir):
     path = Settings.from_env().baseline_path(DRAFT)
     baselines = regress.load_baselines(path) if path is not None else None

@@ -177,6 +177,7 @@ def test_a_flipped_discrete_choice_is_detected_and_smooth_scores_are_not():
 
 @pytest.mark.render
 @pytest.mark.slow
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_predicted_standard_errors_match_the_spread_over_render_seeds(tmp_path):
     """ps_groove at albedo 0.9 rendered with 8 render seeds at draft quality: the standard errors a
     single render predicts for photometric stereo's scores agree with the scores' spread over the

@@ -101,6 +101,7 @@ def test_radiosity_groove(cache):
 
 
 @pytest.mark.render
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_radiosity_room_and_the_perspective_index(cache):
     figures = {}
     recs = IR.check_room(DRAFT, cache, figures=figures)
@@ -130,6 +131,7 @@ def test_radiosity_room_and_the_perspective_index(cache):
 
 
 @pytest.mark.render
+@pytest.mark.longest   # scheduled first (tests/conftest.py)
 def test_radiosity_cap_renderer_solver_and_photometric_stereo(cache):
     figures = {}
     recs = proofs.run_checks(DRAFT, ["radiosity_cap"], cache, figures=figures, photometric_stereo=_woodham())
