@@ -1,6 +1,9 @@
 """Executors: where renders and jobs run.
 
-``local`` runs everything in this process, in order (Mitsuba itself uses all cores).  ``dask``
+``local`` runs everything in this process, in order (Mitsuba itself uses all cores).  ``pool``
+runs renders and jobs in ``--workers N`` processes of this machine (default: one per core), one
+thread each: the jobs' NumPy code is single-threaded, so a pool of one process per core is what
+makes a benchmark use the machine (:class:`PoolExecutor`).  ``dask``
 sends renders and jobs to a Dask distributed cluster (``--scheduler ADDR``, or a LocalCluster of
 ``--workers N`` processes with one thread each).  A worker plugin sets the Mitsuba variant (the
 client's, so every worker renders the same ground truth) and the Dr.Jit thread count once per
@@ -135,6 +138,87 @@ class LocalExecutor:
 
     def close(self):
         pass
+
+
+class PoolExecutor:
+    """Renders and jobs in ``workers`` processes of this machine, started afresh (``spawn``: the
+    parent holds Mitsuba's threads, which a fork would not carry), each set up once by
+    :func:`worker_setup` with one Dr.Jit thread.  Arguments and results travel by cloudpickle (an
+    ``--algorithm`` loaded from a file path is not importable by name in a worker).
+
+    Results are yielded as each finishes (in no particular order).  A worker that dies (killed, out
+    of memory, a crash in a library) breaks the pool: the results yielded before are the caller's
+    to keep, and :class:`pbrbench.errors.UserError` says how to resume.  The workers die with this
+    process (``prctl(PR_SET_PDEATHSIG)`` on Linux), ``kill -9`` included."""
+
+    name = "pool"
+
+    def __init__(self, *, workers: int | None, variant: str | None, settings):
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        self.workers = int(workers or os.cpu_count() or 1)
+        self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
+                                         initializer=_pool_setup, initargs=(variant, settings))
+        self._pending: set = set()
+
+    def imap(self, fn, arglists):
+        import cloudpickle
+        from concurrent.futures import FIRST_COMPLETED, wait
+        from concurrent.futures.process import BrokenProcessPool
+
+        pending = {self._pool.submit(_pool_call, cloudpickle.dumps((fn, tuple(args)))) for args in arglists}
+        self._pending = pending
+        total, done = len(pending), 0
+        try:
+            while pending:
+                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+                self._pending = pending
+                for fut in finished:
+                    try:
+                        result = fut.result()
+                    except BrokenProcessPool:
+                        raise UserError(f"--executor pool: a worker process died ({done} of {total} tasks "
+                                        "finished and kept; killed, out of memory or a crash in a library); "
+                                        "`pbrbench run --resume RUN` reruns only the missing jobs") from None
+                    done += 1
+                    yield cloudpickle.loads(result)
+        finally:
+            if pending:     # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
+                self._kill()
+
+    def _kill(self):
+        procs = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            with contextlib.suppress(Exception):
+                proc.kill()
+
+    def close(self):
+        if any(not f.done() for f in self._pending):
+            self._kill()
+        else:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _pool_setup(variant, settings):
+    """A pool worker's set-up: die with the parent, then :func:`worker_setup` with one thread."""
+    if sys.platform.startswith("linux"):
+        with contextlib.suppress(Exception):
+            import ctypes
+
+            ctypes.CDLL(None, use_errno=True).prctl(1, 9)      # PR_SET_PDEATHSIG, SIGKILL
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)     # Ctrl-C is the parent's to handle: it ends the pool
+    worker_setup(variant, 1, settings)
+
+
+def _pool_call(payload: bytes) -> bytes:
+    import cloudpickle
+
+    fn, args = cloudpickle.loads(payload)
+    return cloudpickle.dumps(fn(*args))
 
 
 def worker_setup(variant: str | None, threads: int | None, settings, worker=None):
@@ -411,6 +495,8 @@ def _connect(client_cls, address: str):
 def make_executor(name: str, *, scheduler=None, workers=None, variant=None, settings):
     if name == "local":
         return LocalExecutor()
+    if name == "pool":
+        return PoolExecutor(workers=workers, variant=variant, settings=settings)
     if name == "dask":
         return DaskExecutor(scheduler=scheduler, workers=workers, variant=variant, settings=settings)
-    raise UserError(f"--executor {name!r}: choose local or dask")
+    raise UserError(f"--executor {name!r}: choose local, pool or dask")

@@ -132,6 +132,12 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
             "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "error": error}
 
 
+def _expected_cost(task, job, algorithms, quality) -> int:
+    """A job's rank by expected time: 1 where a scene-interface algorithm (inverse rendering: each
+    call a series of Mitsuba renders) runs on it, else 0."""
+    return int(any(a.interface == "scene" and a.applies_to_job(job, quality) for a in algorithms))
+
+
 def _form_factor_cache(source) -> None:
     """The radiosity models' form factors live beside the render cache (``form_factors/``)."""
     root = getattr(getattr(source, "cache", None), "root", None)
@@ -286,6 +292,8 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                 args.append((tasks[j.task], j, {n: specs[n] for n in (j.scene, *j.extra_scenes)}, source, cfg.seed,
                              slug(j.key), algs[j.task], quality, cfg.uncertainty))
         outcome.n_cached = len(cached_results)
+        if getattr(ex, "name", "local") != "local":   # parallel workers: the longest jobs first, so that none is left alone at the end
+            args.sort(key=lambda a: -_expected_cost(a[0], a[1], a[6], quality))
 
         def results():
             yield from cached_results

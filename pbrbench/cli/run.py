@@ -24,12 +24,14 @@ def register(sub):
                                    f"Tasks: {', '.join(task_names())}.")
     p.add_argument("--tasks", nargs="+", metavar="TASK", default=None, help="tasks to run (default: all)")
     add_quality(p)
-    p.add_argument("--executor", choices=["local", "dask"], default="local",
-                   help="local: this process; dask: a Dask distributed cluster")
+    p.add_argument("--executor", choices=["local", "pool", "dask"], default="local",
+                   help="local: this process; pool: --workers processes of this machine (default: one per "
+                        "core); dask: a Dask distributed cluster")
     p.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="Dask scheduler address (default: start a LocalCluster)")
     p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
-                   help="LocalCluster worker processes (one thread each; default: cores / 2)")
+                   help="worker processes of --executor pool (default: one per core) or of dask's LocalCluster (one "
+                        "thread each; default: cores / 2)")
     add_store(p)
     p.add_argument("--seed", type=int_at_least(0, (1 << 63) - 1), default=0, help="seed handed to every job (default 0)")
     p.add_argument("--render-seed", type=int_at_least(0, (1 << 21) - 1), default=0, metavar="N",
@@ -93,8 +95,8 @@ def run(args) -> int:
     st = settings(args)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers {args.workers}: give at least 1")
-    if args.workers and args.executor != "dask":
-        raise UserError("--workers only applies to --executor dask")
+    if args.workers and args.executor not in ("pool", "dask"):
+        raise UserError("--workers only applies to --executor pool or dask")
     if args.scheduler and args.executor != "dask":
         raise UserError("--scheduler only applies to --executor dask")
     if args.tasks:  # before anything is created on disk
