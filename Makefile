@@ -15,8 +15,9 @@ $(STAMP): pyproject.toml setup.py requirements.lock scripts/setup.sh
 
 setup: $(STAMP)
 
+# --executor pool: the jobs in one worker process per core (the renders use every core anyway)
 bench: $(STAMP)
-	$(VENV)/bin/pbrbench run --quality standard
+	$(VENV)/bin/pbrbench run --quality standard --executor pool
 
 # pyproject.toml's addopts: -ra (the summary of every test not passed, skips with their reasons; a
 # skip not on tests/allowed_skips.txt fails the run) and -n auto (pytest-xdist, a worker per core).

@@ -27,7 +27,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from pbrbench.bench import lifecycle
-from pbrbench.bench.executors import blas_threads, job_threads, make_executor, worker_source
+from pbrbench.bench.executors import LocalExecutor, blas_threads, job_threads, make_executor, worker_source
 from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
@@ -267,7 +267,8 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                 metas[n] = (m, True)
         if missing:
             with Progress(len(missing), f"render ({quality.name})", bars=bars, unit="scene") as bar:
-                for name, meta, cached in ex.imap(_render_task, [(source, specs[n]) for n in missing]):
+                rex = LocalExecutor() if getattr(ex, "renders_in_process", False) else ex
+                for name, meta, cached in rex.imap(_render_task, [(source, specs[n]) for n in missing]):
                     metas[name] = (meta, cached)
                     outcome.renders += int(not cached)
                     bar.update(1, name)
