@@ -10,7 +10,9 @@ is the per-pixel jackknife standard deviation of the image estimate):
 * ``direct``: ``max_depth = 2``; ``indirect = radiance - direct`` (same seeds, so in LLVM the two
   renders share their first bounce and the difference is low-variance);
 * ``light{k}.radiance`` / ``light{k}.direct``: one light of the light set in the scene at a time
-  (never zeroed lights: docs/rendering.md);
+  (never zeroed lights: docs/rendering.md); where the light set is every light of the scene,
+  ``radiance`` and ``direct`` are the sums of these (linearity in the sources), not renders of
+  their own;
 * ``unoccluded_fraction`` (scenes with occluders): direct / direct-without-occluders;
 * ``diffuse_only`` (scenes with glossy materials): the twin with every coating removed;
 * AOVs (a separate pass, docs/rendering.md): ``albedo``, ``normals`` (camera frame of docs/conventions.md:
@@ -38,7 +40,7 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 10  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 11  # bump when the content of a ground truth changes (invalidates caches)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
 SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)
@@ -476,13 +478,19 @@ def render_ground_truth(spec: S.SceneSpec, quality: Quality, *, variant: str | N
     def put(name, mean_jk):
         arrays[name], jks[name] = mean_jk
 
-    put("radiance", r.render_groups("radiance", 0, integrator=path))
-    if direct_only:
-        arrays["direct"], jks["direct"] = arrays["radiance"], jks["radiance"]
-        r._tick("direct (= radiance)")
-    else:
-        put("direct", r.render_groups("direct", 0, integrator=direct))
-    arrays["indirect"] = arrays["radiance"] - arrays["direct"]
+    # Where the light set is every light of the scene, the all-lights passes are the sums of the
+    # per-light ones (light transport is linear in the sources; the sample groups line up, so the
+    # delete-one-group deviations add too): no render of their own.  The sum is less noisy than one
+    # all-lights render at the same samples, which spends each sample on one of the sources.
+    # ``pbrbench validate`` (proof 5) checks the sum against an independent all-lights render.
+    summed = bool(spec.light_set) and not spec.lights
+    if not summed:
+        put("radiance", r.render_groups("radiance", 0, integrator=path))
+        if direct_only:
+            arrays["direct"], jks["direct"] = arrays["radiance"], jks["radiance"]
+            r._tick("direct (= radiance)")
+        else:
+            put("direct", r.render_groups("direct", 0, integrator=direct))
     for k, light in enumerate(spec.light_set):
         n = f"light{k:02d}"
         put(f"{n}.radiance", r.render_groups(f"light {k}", 10 + k, integrator=path, lights=[light]))
@@ -491,6 +499,15 @@ def render_ground_truth(spec: S.SceneSpec, quality: Quality, *, variant: str | N
             r._tick(f"light {k} direct (= radiance)")
         else:
             put(f"{n}.direct", r.render_groups(f"light {k} direct", 10 + k, integrator=direct, lights=[light]))
+    if summed:
+        for kind in ("radiance", "direct"):
+            names = [f"light{k:02d}.{kind}" for k in range(len(spec.light_set))]
+            arrays[kind] = np.sum([arrays[n].astype(np.float64) for n in names], axis=0).astype(np.float32)
+            jks[kind] = np.sum([jks[n].astype(np.float64) for n in names], axis=0).astype(np.float32)
+            r.spp_per_pass[kind] = sum(r.spp_per_pass[f"light {k}" + ("" if kind == "radiance" or direct_only else " direct")]
+                                       for k in range(len(spec.light_set)))
+            r._tick(f"{kind} (= the sum of the lights)")
+    arrays["indirect"] = arrays["radiance"] - arrays["direct"]
     if spec.has_occluders:
         put("direct_unoccluded", r.render_groups("unoccluded", 0, integrator=direct, drop_occluders=True))
         arrays["unoccluded_fraction"] = unoccluded_fraction(arrays["direct"], arrays["direct_unoccluded"])

@@ -72,18 +72,30 @@ def test_albedo_aov_exact(gt):
 
 
 @pytest.mark.render
-def test_light_stack_and_direct_split(gt):
+def test_light_stack_and_direct_split(gt, cache_dir):
     stack = gt.light_stack("direct")
     assert stack.shape == (2, RES, RES, 3)
-    # linearity: the per-light direct images sum to the all-lights direct image within noise
-    # (the one-light renders are nearly noise-free; the all-lights render samples one light per
-    # path, so its noise dominates: compare image means against that noise)
-    n = gt["direct"].size
-    diff = stack.sum(0).mean() - gt["direct"].mean()
-    sigma = np.sqrt(np.sum(gt["direct_sd"].astype(np.float64) ** 2)) / n
-    assert abs(diff) < 4 * sigma + 1e-6 * gt["direct"].mean()
+    # the light set is every light of the scene: the all-lights passes are the sums of the
+    # per-light ones, in every delete-one-group replicate too
+    np.testing.assert_allclose(gt["direct"], stack.sum(0), rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(gt["radiance"], gt.light_stack("radiance").sum(0), rtol=1e-5, atol=1e-7)
+    for i in range(gt.groups):
+        rep = gt.replicate(i)
+        np.testing.assert_allclose(rep["radiance"], rep.light_stack("radiance").sum(0), rtol=1e-5, atol=1e-6)
     np.testing.assert_allclose(gt["indirect"], gt["radiance"] - gt["direct"], atol=1e-6)
     assert gt["indirect"][gt["object_id"] == 1].mean() > 0  # the wall lights the ball
+    # linearity: the sum agrees, within noise, with an independent render of every light at once
+    # (the same lights as the scene's own lights, not a light set)
+    twin = SceneSpec.model_validate({**SCENE, "name": "gt_probe_all_lights", "lights": SCENE["light_set"],
+                                     "light_set": []})
+    g2, _ = ground_truth(twin, STANDARD, cache=RenderCache(cache_dir))
+    assert g2.n_lights == 0
+    for kind in ("direct", "radiance"):
+        n = gt[kind].size
+        diff = gt[kind].astype(np.float64).mean() - g2[kind].astype(np.float64).mean()
+        sigma = np.sqrt(np.sum(gt[f"{kind}_sd"].astype(np.float64) ** 2) + np.sum(g2[f"{kind}_sd"].astype(np.float64) ** 2)) / n
+        assert abs(diff) < 4 * sigma + 1e-6 * g2[kind].mean(), (kind, diff, sigma)
+        assert not np.array_equal(gt[kind], g2[kind])      # a render of its own, not the sum
 
 
 @pytest.mark.render
