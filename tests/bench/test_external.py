@@ -159,6 +159,7 @@ def _by_key(scores, algorithm):
     return {(s["scene"], s["condition"], s["metric"]): s["value"] for s in scores if s["algorithm"] == algorithm}
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 @pytest.mark.parametrize("name", list(TASKS))
 def test_export_external_program_evaluate_reproduces_the_in_process_scores_exactly(tmp_path, name):
     task, seed = TASKS[name], 3
@@ -191,6 +192,7 @@ class Grouped(Synthetic):
         return with_groups(super().load(spec), 0.01, seed=sum(map(ord, spec.name)))
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicates(tmp_path):
     task, seed = TASKS["photometric_stereo"], 1
     ref = run_benchmark(RunConfig(quality="draft", seed=seed, entry_points=False), settings=settings_for(tmp_path / "ref"),
@@ -251,6 +253,7 @@ def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
     assert "exposure_times" in json.loads((d / "job.json").read_text())["inputs"]
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_float32_exr_predictions_score_close_to_the_exact_ones(tmp_path):
     task = TASKS["photometric_stereo"]
     ref = _in_process(tmp_path / "ref", task, 0)
@@ -266,6 +269,7 @@ def test_float32_exr_predictions_score_close_to_the_exact_ones(tmp_path):
             assert got[k] == pytest.approx(v, abs=1e-3), k      # float32 normals: ~1e-7 rad
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_hdr_radiance_predictions_are_scored_without_the_response(tmp_path):
     task = TASKS["hdr"]
     ref = _in_process(tmp_path / "ref", task, 1)

@@ -90,6 +90,7 @@ def test_false_alarm_rate_and_power_on_simulated_renders():
     assert len(cp.regressions) >= 0.9 * n and not cp.ok
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_unchanged_runs_pass_the_check_and_a_large_regression_of_one_score_fails_it():
     """Over 40 independent simulated baselines and re-seeded runs of 200 scores each, the check
     passes at least 90 % of the time (designed: about 99 %); one score moved by 30 standard errors

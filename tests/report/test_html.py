@@ -181,6 +181,7 @@ FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-
          "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 @pytest.mark.skipif(not Path(CHROMIUM).exists(), reason=f"{CHROMIUM} not installed (Debian package `chromium`)")
 def test_headless_chromium_every_page_loads_clean(report, tmp_path):
     _, o = report

@@ -93,6 +93,7 @@ def test_cap_lit_region():
     assert (x + t * s)[2] < 0  # the second intersection is below the rim: on the cap
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 @pytest.mark.parametrize("rho,alpha", [(0.3, 30.0), (0.9, 60.0), (0.6, 85.0)])
 def test_cap_interreflection_is_uniform_and_matches_the_closed_form(rho, alpha):
     S = toward(0.5 * (90 - alpha))
@@ -130,6 +131,7 @@ def test_cap_with_cast_shadows():
     assert errs[1] < 0.03 and errs[1] < 0.6 * errs[0]  # shadow edges cut patches: first order
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_photometric_stereo_on_the_cap_recovers_the_biased_normals():
     rho, a = 0.9, 60.0
     p = spherical_cap_patches(1.0, a, n_rings=10, albedo=rho)

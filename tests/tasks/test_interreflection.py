@@ -31,6 +31,7 @@ def rooms():
     return {n: fine_gt(n) for n in ("room_black", "room_white")}
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_the_local_model_fails_in_the_white_room_and_holds_in_the_black_one(rooms):
     err = {}
     for name, gt in rooms.items():
@@ -48,6 +49,7 @@ def test_the_local_model_fails_in_the_white_room_and_holds_in_the_black_one(room
         ("radiosity", "radiosity_rel_error")]
 
 
+@pytest.mark.slow   # the rooms fixture takes 7 s to build (per worker)
 def test_a_broken_model_is_scored_as_failed(rooms):
     def bad(spec, resolution):
         return np.zeros((3, 3))
@@ -57,6 +59,7 @@ def test_a_broken_model_is_scored_as_failed(rooms):
     assert scores_of(res)[("bad", "failed")] == 1.0 and "radiance" in res.failures["bad"]
 
 
+@pytest.mark.slow   # the rooms fixture takes 7 s to build (per worker)
 def test_grey_output_is_accepted(rooms):
     def grey(spec, resolution):
         return predict_radiance(spec, resolution, cells=8).mean(-1)
@@ -66,6 +69,7 @@ def test_grey_output_is_accepted(rooms):
     assert scores_of(res)[("grey", "radiosity_rel_error")] < 0.2
 
 
+@pytest.mark.slow   # the rooms fixture takes 7 s to build (per worker)
 def test_room_and_groove_plots_name_their_chapter_figures(rooms):
     res = run_task(TASK, Job(TASK.name, "room_white", "global", (("plot", "rooms"),), ("room_black",)), rooms)
     assert not res.scores and any(k.startswith("Fig 1.17") for k in res.plots)

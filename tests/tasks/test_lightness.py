@@ -140,6 +140,7 @@ def test_lightness_ambient_puts_the_black_shadow_into_the_input_and_the_retinex_
         assert shadow["local+ambient0.1"][(alg, "lmse")] > 2 * shadow["local"][(alg, "lmse")], alg
 
 
+@pytest.mark.slow   # 2.5 s or more (the fast loop leaves it to make test)
 def test_a_draft_run_of_lightness_scores_the_ambient_condition_with_an_uncertainty(tmp_path):
     from pbrbench.bench.run import RunConfig, run_benchmark
     from pbrbench.report.html import headline_tables
