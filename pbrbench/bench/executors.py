@@ -166,17 +166,16 @@ class PoolExecutor:
         self._pending: set = set()
 
     def imap(self, fn, arglists):
-        import cloudpickle
         from concurrent.futures import FIRST_COMPLETED, wait
         from concurrent.futures.process import BrokenProcessPool
 
-        pending = {self._pool.submit(_pool_call, cloudpickle.dumps((fn, tuple(args)))) for args in arglists}
-        self._pending = pending
-        total, done = len(pending), 0
+        import cloudpickle
+
+        self._pending = {self._pool.submit(_pool_call, cloudpickle.dumps((fn, tuple(args)))) for args in arglists}
+        total, done = len(self._pending), 0
         try:
-            while pending:
-                finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-                self._pending = pending
+            while self._pending:
+                finished, self._pending = wait(self._pending, return_when=FIRST_COMPLETED)
                 for fut in finished:
                     try:
                         result = fut.result()
@@ -187,7 +186,7 @@ class PoolExecutor:
                     done += 1
                     yield cloudpickle.loads(result)
         finally:
-            if pending:     # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
+            if self._pending:     # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
                 self._kill()
 
     def _kill(self):

@@ -27,7 +27,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from pbrbench.bench import lifecycle
-from pbrbench.bench.executors import LocalExecutor, blas_threads, job_threads, make_executor, worker_source
+from pbrbench.bench.executors import (
+    LocalExecutor,
+    blas_threads,
+    job_threads,
+    make_executor,
+    worker_source,
+)
 from pbrbench.bench.jobcache import JobCache, fingerprint
 from pbrbench.bench.plan import load_tasks, needed_scenes, plan, task_info
 from pbrbench.bench.source import RENDER_LOCK, GroundTruthSource
@@ -132,7 +138,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
             "seconds": time.perf_counter() - t0, "cpu_seconds": time.process_time() - c0, "error": error}
 
 
-def _expected_cost(task, job, algorithms, quality) -> int:
+def _expected_cost(job, algorithms, quality) -> int:
     """A job's rank by expected time: 1 where a scene-interface algorithm (inverse rendering: each
     call a series of Mitsuba renders) runs on it, else 0."""
     return int(any(a.interface == "scene" and a.applies_to_job(job, quality) for a in algorithms))
@@ -294,7 +300,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                              slug(j.key), algs[j.task], quality, cfg.uncertainty))
         outcome.n_cached = len(cached_results)
         if getattr(ex, "name", "local") != "local":   # parallel workers: the longest jobs first, so that none is left alone at the end
-            args.sort(key=lambda a: -_expected_cost(a[0], a[1], a[6], quality))
+            args.sort(key=lambda a: -_expected_cost(a[1], a[6], quality))
 
         def results():
             yield from cached_results

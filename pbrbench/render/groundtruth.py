@@ -500,12 +500,17 @@ def render_ground_truth(spec: S.SceneSpec, quality: Quality, *, variant: str | N
         else:
             put(f"{n}.direct", r.render_groups(f"light {k} direct", 10 + k, integrator=direct, lights=[light]))
     if summed:
-        for kind in ("radiance", "direct"):
-            names = [f"light{k:02d}.{kind}" for k in range(len(spec.light_set))]
-            arrays[kind] = np.sum([arrays[n].astype(np.float64) for n in names], axis=0).astype(np.float32)
-            jks[kind] = np.sum([jks[n].astype(np.float64) for n in names], axis=0).astype(np.float32)
-            r.spp_per_pass[kind] = sum(r.spp_per_pass[f"light {k}" + ("" if kind == "radiance" or direct_only else " direct")]
-                                       for k in range(len(spec.light_set)))
+        ks = range(len(spec.light_set))
+        for kind, what in (("radiance", "light {}"), ("direct", "light {} direct")):
+            if kind == "direct" and direct_only:   # the per-light direct passes are the radiance ones
+                arrays["direct"], jks["direct"] = arrays["radiance"], jks["radiance"]
+                r.spp_per_pass["direct"] = r.spp_per_pass["radiance"]
+            else:
+                arrays[kind] = np.sum([arrays[f"light{k:02d}.{kind}"].astype(np.float64) for k in ks],
+                                      axis=0).astype(np.float32)
+                jks[kind] = np.sum([jks[f"light{k:02d}.{kind}"].astype(np.float64) for k in ks],
+                                   axis=0).astype(np.float32)
+                r.spp_per_pass[kind] = sum(r.spp_per_pass[what.format(k)] for k in ks)
             r._tick(f"{kind} (= the sum of the lights)")
     arrays["indirect"] = arrays["radiance"] - arrays["direct"]
     if spec.has_occluders:

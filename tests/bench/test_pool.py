@@ -83,7 +83,7 @@ def test_jobs_with_inverse_rendering_are_ranked_first():
     job = Job("photometric_stereo", "ps_cup[albedo=0.9]", "global", ())
     plain = Algorithm("a", "photometric_stereo", _solve)
     scene = Algorithm("inv", "photometric_stereo", _solve, interface="scene", conditions=("global",))
-    assert _expected_cost(None, job, [plain], DRAFT) == 0
-    assert _expected_cost(None, job, [plain, scene], DRAFT) == 1
+    assert _expected_cost(job, [plain], DRAFT) == 0
+    assert _expected_cost(job, [plain, scene], DRAFT) == 1
     off = Algorithm("inv", "photometric_stereo", _solve, interface="scene", conditions=("local",))
-    assert _expected_cost(None, job, [plain, off], DRAFT) == 0
+    assert _expected_cost(job, [plain, off], DRAFT) == 0
