@@ -17,9 +17,10 @@ The delete-one-group jackknife (Quenouille 1956, Tukey 1958; Efron & Stein 1981)
 ``\\hat b`` the bias that render noise gives the score (a score that is not linear in the
 images is biased by O(1/spp): each replicate has ``(G-1)/G`` of the samples, so its bias is
 ``G/(G-1)`` times the full score's) and ``v - \\hat b`` the bias-corrected score.  Where the inputs
-also depend on the seed (injected camera noise), a second seed's score ``v_n`` adds
-``(v - v_n)^2 / 2`` with one degree of freedom; the degrees of freedom of a sum of variances
-come from the Welch-Satterthwaite rule.  Intervals use Student's t on those degrees of freedom.
+also depend on the seed (injected camera noise), the job is also scored with ``K`` other seeds
+(``v_{n,1} ... v_{n,K}``, on the full ground truth): ``v`` and those ``K`` are ``K + 1``
+independent draws of the seed's effect, and their sample variance (``K`` degrees of freedom) is
+added.  The degrees of freedom of a sum of variances come from the Welch-Satterthwaite rule.  Intervals use Student's t on those degrees of freedom.
 
 Only the standard library and, for the t quantiles, SciPy (imported on first use) are used.
 
@@ -107,15 +108,44 @@ def satterthwaite(parts: list[tuple[float, float]]) -> float:
     return tot * tot / den
 
 
+def noise_values(rep_noise) -> list[float]:
+    """The other seeds' values of a score (:func:`estimate`): ``rep_noise`` as stored, one value
+    (scores stored before there were several), a list of them or its JSON text; the finite ones."""
+    r = rep_noise
+    if isinstance(r, str):
+        try:
+            r = json.loads(r)
+        except ValueError:
+            return []
+    if r is None:
+        return []
+    if not isinstance(r, (list, tuple)):
+        r = [r]
+    return [float(v) for v in r if finite(v)]
+
+
+def noise_part(value: float, rep_noise) -> tuple[float, int] | None:
+    """``(variance, dof)`` of the seed's part of a score's error: the sample variance of ``value``
+    and its other seeds' values (``K`` values, ``K`` degrees of freedom); None without any."""
+    vals = noise_values(rep_noise)
+    if not vals or not finite(value):
+        return None
+    xs = [float(value), *vals]
+    m = sum(xs) / len(xs)
+    return sum((x - m) ** 2 for x in xs) / (len(xs) - 1), len(vals)
+
+
 def estimate(value: float, reps=None, rep_noise=None) -> dict:
     """``uncertainty`` (one standard error), ``dof``, ``bias`` and ``unstable`` of a score from its
-    replicates (module docstring); NaN / 0 / None where they cannot be estimated."""
+    replicates and its other seeds' values ``rep_noise`` (module docstring); NaN / 0 / None where
+    they cannot be estimated."""
     se_j, bias, dof_j = jackknife(value, reps)
     parts = []
     if dof_j:
         parts.append((se_j * se_j, dof_j))
-    if finite(rep_noise) and finite(value):
-        parts.append(((value - rep_noise) ** 2 / 2.0, 1))
+    noise = noise_part(value, rep_noise)
+    if noise is not None:
+        parts.append(noise)
     if not parts:
         return {"uncertainty": float("nan"), "dof": 0.0, "bias": float("nan"), "unstable": None}
     var = sum(v for v, _ in parts)
@@ -202,15 +232,19 @@ def _paired_jackknife(x: dict, ref: dict):
 def paired(x: dict, ref: dict) -> tuple[float, float]:
     """``(SE, dof)`` of ``x.value - ref.value`` for two score dicts: the paired jackknife when both
     come from one ground truth, which keeps their correlation (:func:`_paired_jackknife`), plus
-    each side's noise-seed part; otherwise the two are independent and their errors add in
+    the seed's part (paired too when both were scored with the same other seeds); otherwise the two are independent and their errors add in
     quadrature."""
     jk = _paired_jackknife(x, ref)
     if jk is not None:
         se, _, dof = jk
         parts = [(se * se, dof)]
-        for s in (x, ref):
-            if finite(s.get("rep_noise")):
-                parts.append(((s["value"] - s["rep_noise"]) ** 2 / 2.0, 1))
+        nx, nr = (noise_values(s.get("rep_noise")) for s in (x, ref))
+        if nx and len(nx) == len(nr):
+            # both depend on the seed and were scored with the same other seeds: the seed's part of
+            # the difference from the paired differences (their correlation kept)
+            parts.append(noise_part(x["value"] - ref["value"], [a - b for a, b in zip(nx, nr, strict=True)]))
+        else:
+            parts += [p for p in (noise_part(s["value"], s.get("rep_noise")) for s in (x, ref)) if p is not None]
         var = sum(v for v, _ in parts)
         return math.sqrt(var), (satterthwaite(parts) if var > 0 else float(dof))
     ux, ur = x.get("uncertainty"), ref.get("uncertainty")

@@ -45,6 +45,21 @@ def main(argv):
             bad.append((k, x["value"], y["value"], tol))
     n = len(common)
     print(f"{n - len(bad)} of {n} headline cells agree within 2 combined standard errors ({100 * (n - len(bad)) / max(n, 1):.1f} %)")
+    # what the SE model itself expects: with exact standard errors estimated on nu degrees of
+    # freedom, the difference over its combined SE is Student's t on the Welch-Satterthwaite dof,
+    # and |t| <= 2 holds with probability P(nu) < 0.954 (0.908 at nu = 6)
+    from scipy import stats
+
+    from pbrbench.uncertainty import combined
+
+    def _p(x, y):
+        se_x, se_y = (c["se"] if math.isfinite(c["se"]) else 0.0 for c in (x, y))
+        _, nu = combined((se_x, x.get("dof") or math.inf), (se_y, y.get("dof") or math.inf))
+        return float(stats.norm.cdf(2) - stats.norm.cdf(-2)) if not math.isfinite(nu) else float(stats.t.cdf(2, nu) - stats.t.cdf(-2, nu))
+
+    expect = sum(_p(a[k], b[k]) for k in common)
+    print(f"  expected with exact standard errors on the cells' degrees of freedom: {expect:.1f} of {n} "
+          f"({100 * expect / max(n, 1):.1f} %)")
     unst = {k for k in common if a[k].get("unstable") or b[k].get("unstable")}
     ns = n - len(unst)
     bs = sum(1 for k, *_ in bad if k not in unst)
@@ -53,7 +68,8 @@ def main(argv):
     for task in sorted({k[0] for k in common}):
         nt = sum(1 for k in common if k[0] == task)
         bt = sum(1 for k, *_ in bad if k[0] == task)
-        print(f"  {task}: {nt - bt} of {nt} ({100 * (nt - bt) / nt:.1f} %)")
+        et = sum(_p(a[k], b[k]) for k in common if k[0] == task)
+        print(f"  {task}: {nt - bt} of {nt} ({100 * (nt - bt) / nt:.1f} %; expected {100 * et / nt:.1f} %)")
     for k, x, y, tol in bad:
         print(f"  {' / '.join(k)}: {x:.6g} vs {y:.6g} (allowed {tol:.3g})")
     return 0

@@ -57,7 +57,7 @@ from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
-FORMAT = "pbrbench-export/1"
+FORMAT = "pbrbench-export/2"    # 2: three other noise seeds (replicates/noise, noise2, noise3)
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
 MAX_PREDICTION_BYTES = MAX_DATA_BYTES   # largest array a prediction file may hold (as float64), as a scene data file
@@ -195,9 +195,9 @@ def _prediction_entry(task, pred, inputs) -> dict:
 def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
     """``(sub-folder, ground truths, seed)`` of every input set a job is scored on: the full
     ground truth (``""``), each delete-one-group replicate (``replicates/<i>``) and, where the
-    inputs depend on the seed, the second seed (``replicates/noise``): the sets
-    :mod:`pbrbench.bench.uncertainty` scores for the standard error."""
-    from pbrbench.bench.uncertainty import NOISE_SEED_OFFSET
+    inputs depend on the seed, the other seeds (``replicates/noise``, ``replicates/noise2``, ...):
+    the sets :mod:`pbrbench.bench.uncertainty` scores for the standard error."""
+    from pbrbench.bench.uncertainty import noise_seeds
 
     sets = [("", gts, seed)]
     groups = {getattr(g, "groups", 0) for g in gts.values()}
@@ -205,7 +205,7 @@ def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
         (G,) = groups
         sets += [(f"replicates/{i}", {n: g.replicate(i) for n, g in gts.items()}, seed) for i in range(G)]
     if task.seed_dependent(job):
-        sets.append(("replicates/noise", gts, seed + NOISE_SEED_OFFSET))
+        sets += [(f"replicates/noise{k + 1 if k else ''}", gts, sk) for k, sk in enumerate(noise_seeds(seed))]
     return sets
 
 
@@ -213,7 +213,7 @@ def export_task(task, out_dir, *, quality, seed: int = 0, source, log=None, repl
     """Write every scored job's inputs of ``task`` at ``quality`` under ``out_dir`` (see the
     module docstring); ground truths come from ``source`` (rendered when missing).  With
     ``replicates`` each job folder also holds ``replicates/<i>/`` (the inputs made from the
-    delete-one-group ground truths, and ``replicates/noise/`` for a second seed): predictions
+    delete-one-group ground truths, and ``replicates/noise*/`` for the other seeds): predictions
     written there too give ``evaluate`` the standard error.  Returns the manifest."""
     from pbrbench.progress import Progress
     from pbrbench.quality import require
@@ -287,9 +287,10 @@ def _readme(task, manifest) -> str:
             f"pbrbench's own algorithms (float64); the .exr/.png files are the same images for any program.\n\n"
             f"Write into each job folder (or a copy of the tree given to --predictions):\n{preds}\n\n"
             + ("Standard errors: each job folder also holds replicates/0, replicates/1, ... (the same inputs made\n"
-               "from the render's independent sample groups, one left out each; replicates/noise: a second noise\n"
-               "seed).  Run your program on every replicates/* folder too and write the same files there: evaluate\n"
-               "then gives every score its ± (the delete-one-group jackknife), and its Monte Carlo bias.\n\n"
+               "from the render's independent sample groups, one left out each) and, where the inputs depend on\n"
+               "the seed, replicates/noise, replicates/noise2, ... (other noise seeds).  Run your program on\n"
+               "every replicates/* folder too and write the same files there: evaluate then gives every score\n"
+               "its ± (the delete-one-group jackknife), and its Monte Carlo bias.\n\n"
                if manifest.get("replicates") else "")
             + f"Then score them:  pbrbench evaluate {task.name} THIS_FOLDER [--name MINE]\n\n"
             f"Conventions: {json.dumps(CONVENTIONS, indent=1)}\n")

@@ -11,8 +11,10 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
   comparison (JSON: the regression comparison with the baselines, made once by the run);
 * ``scores``: run, task, scene, scene_hash, condition, algorithm, algorithm_version, metric,
   value, uncertainty (one standard error, NULL when none was estimated) and the replicate values
-  behind it (replicates: the delete-one-group values as JSON, rep_noise: a second seed; rep_a,
-  rep_b: the two half-sample values of runs stored before schema 5), dof, bias, unstable, seconds,
+  behind it (replicates: the delete-one-group values as JSON; noise_reps: the values at the
+  other seeds of a seed-dependent job as JSON, and rep_noise the first of them, the only one
+  before schema 6; rep_a, rep_b: the two half-sample values of runs stored before schema 5),
+  dof, bias, unstable, seconds,
   better (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
@@ -50,7 +52,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from pbrbench.errors import DiskError, UserError, disk_error
-from pbrbench.uncertainty import replicates_of
+from pbrbench.uncertainty import noise_values, replicates_of
 
 BUSY_TIMEOUT_MS = 60_000
 
@@ -133,6 +135,9 @@ ALTER TABLE scores ADD COLUMN dof REAL;
 ALTER TABLE scores ADD COLUMN bias REAL;
 ALTER TABLE scores ADD COLUMN unstable INTEGER
 """),
+    (6, "the values of a seed-dependent score at its other seeds (JSON; rep_noise keeps the first)", """
+ALTER TABLE scores ADD COLUMN noise_reps TEXT
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -140,7 +145,7 @@ RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
                 "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_noise", "replicates", "dof",
-                "bias", "unstable")
+                "bias", "unstable", "noise_reps")
 
 
 def _now() -> str:
@@ -202,6 +207,10 @@ def _num(x):
         return None
     x = float(x)
     return None if math.isnan(x) else x
+
+
+def _first(xs):
+    return xs[0] if xs else None
 
 
 def _reps(r) -> str | None:
@@ -501,9 +510,10 @@ class Store:
             rows.append((run_id, d["task"], d["scene"], d.get("scene_hash", "") or "", d.get("condition", "") or "",
                          d["algorithm"], d.get("algorithm_version", "") or "", d["metric"], _num(d["value"]),
                          _num(d.get("seconds")), d.get("better", "lower") or "lower", d.get("unit", "") or "", job_key,
-                         _num(d.get("uncertainty")), _num(d.get("rep_noise")), _reps(d.get("replicates")),
-                         _num(d.get("dof")), _num(d.get("bias")),
-                         None if d.get("unstable") is None else int(bool(d["unstable"]))))
+                         _num(d.get("uncertainty")), _num(_first(noise_values(d.get("rep_noise")))),
+                         _reps(d.get("replicates")), _num(d.get("dof")), _num(d.get("bias")),
+                         None if d.get("unstable") is None else int(bool(d["unstable"])),
+                         _reps(noise_values(d.get("rep_noise")) or None)))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -531,6 +541,8 @@ class Store:
             if d.get("uncertainty") is None:
                 d["uncertainty"] = float("nan")
             d["replicates"] = replicates_of(d)   # older rows: the two half-sample values
+            nr = d.pop("noise_reps", None)      # older rows: one other seed, in rep_noise
+            d["rep_noise"] = noise_values(nr if nr is not None else d.get("rep_noise")) or None
             if d.get("dof") is None:
                 d["dof"] = float(len(d["replicates"]) - 1) if d["replicates"] else 0.0
             if d.get("bias") is None:

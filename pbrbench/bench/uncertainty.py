@@ -9,9 +9,9 @@ seed, gives ``G`` replicate values ``v_(i)`` of each metric, and the delete-one-
 of freedom and its render-noise bias from the same renders.
 
 Where the job's inputs also depend on the seed (injected camera noise, random pixel sampling:
-:meth:`pbrbench.tasks.base.Task.seed_dependent`), the job is scored once more on the full ground
-truth with another seed, ``v_n``, and ``SE_noise^2 = (v - v_n)^2 / 2`` (one degree of freedom) is
-added.
+:meth:`pbrbench.tasks.base.Task.seed_dependent`), the job is scored :data:`NOISE_SEEDS` more times
+on the full ground truth with other seeds, ``v_{n,k}``, and the sample variance of ``v`` and those
+values (:data:`NOISE_SEEDS` degrees of freedom) is added.
 
 The replicate values are stored with the score (``replicates``, ``rep_noise``), so a difference
 between two conditions rendered from the same ground truth (``global - local`` of one scene) gets
@@ -24,7 +24,13 @@ from __future__ import annotations
 
 from pbrbench.uncertainty import estimate
 
-NOISE_SEED_OFFSET = 1_000_003     # the second seed of seed-dependent jobs
+NOISE_SEED_OFFSET = 1_000_003     # other seed k (1, 2, ...) of a seed-dependent job: seed + k * NOISE_SEED_OFFSET
+NOISE_SEEDS = 3                   # other seeds of a seed-dependent job: the seed's part of its SE on 3 dof
+
+
+def noise_seeds(seed: int) -> list[int]:
+    """The other seeds a seed-dependent job scored with ``seed`` is also scored with."""
+    return [seed + k * NOISE_SEED_OFFSET for k in range(1, NOISE_SEEDS + 1)]
 
 
 def score_key(s: dict) -> tuple:
@@ -40,7 +46,7 @@ def _values(scores) -> dict:
 
 
 def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None) -> dict[str, dict]:
-    """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: value}}`` for the job's
+    """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: [v_n1, ..., v_nK]}}`` for the job's
     scores (keys ``(scene, algorithm, metric)``); parts that cannot be computed (a ground truth
     without its sample groups, a job whose inputs do not depend on the seed) are absent.
 
@@ -76,8 +82,14 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
     if task.seed_dependent(job):
-        res = task.run_job(job, gts, seed=seed + NOISE_SEED_OFFSET, algorithms=algorithms, quality=quality)
-        out["rep_noise"] = _values(res.scores)
+        noise: dict = {}
+        seeds = noise_seeds(seed)
+        for k, sk in enumerate(seeds):
+            vals = _values(task.run_job(job, gts, seed=sk, algorithms=algorithms, quality=quality).scores)
+            _drop_failed(vals)
+            for key, v in vals.items():
+                noise.setdefault(key, [float("nan")] * len(seeds))[k] = v
+        out["rep_noise"] = noise
     return out
 
 
@@ -88,7 +100,8 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
         k = score_key(s)
         r = reps.get("replicates", {}).get(k)
         s["replicates"] = list(r) if r is not None else None
-        s["rep_noise"] = reps.get("rep_noise", {}).get(k)
+        n = reps.get("rep_noise", {}).get(k)
+        s["rep_noise"] = list(n) if n is not None else None
         s.update(estimate(s["value"], s["replicates"], s["rep_noise"]))
     # a flipped discrete choice is the pipeline's, not one metric's: every metric of that
     # algorithm's output on the job is unstable when one of them is

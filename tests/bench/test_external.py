@@ -205,7 +205,8 @@ def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicat
     export_task(task, tmp_path / "export", quality=get_quality(DRAFT), seed=seed, source=Grouped(tmp_path / "cache"))
     job = json.loads((tmp_path / "export" / read_manifest(tmp_path / "export")["jobs"][1]["folder"] / "job.json").read_text())
     assert [r["folder"].split("/", 2)[-1] for r in job["replicates"]] == [
-        "replicates/0", "replicates/1", "replicates/2", "replicates/3", "replicates/noise"]   # local+noise0.01
+        "replicates/0", "replicates/1", "replicates/2", "replicates/3",
+        "replicates/noise", "replicates/noise2", "replicates/noise3"]   # local+noise0.01: three other seeds
     # the program ran on the jobs only: scores, no standard errors, and the reader says why
     _external(tmp_path / "export")
     out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "a"),

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from pbrbench.bench.uncertainty import attach, replicate_scores
+from pbrbench.bench.uncertainty import NOISE_SEEDS, attach, replicate_scores
 from pbrbench.quality import get_quality
 from pbrbench.registry import Algorithm, builtin_registry
 from pbrbench.render.groundtruth import JK, GroundTruth, jackknife_sd, loo_deviations
 from pbrbench.tasks.base import Job, JobResult, Task
 from pbrbench.tasks.common.scoring import ScoreBook
-from pbrbench.uncertainty import estimate, jackknife, standard_error, unstable
+from pbrbench.uncertainty import estimate, jackknife, paired, standard_error, unstable
 from tests.fakes import ps_gt, ps_job
 
 G = 4
@@ -146,7 +146,12 @@ def test_jackknife_bias_correction_removes_the_noise_bias():
 
 
 def test_seed_dependent_jobs_add_the_noise_seed_part():
-    assert standard_error(1.0, None, 1.0 + math.sqrt(2) * 0.3) == pytest.approx(0.3)
+    assert standard_error(1.0, None, 1.0 + math.sqrt(2) * 0.3) == pytest.approx(0.3)   # one other seed (old rows)
+    # K other seeds: the sample variance of the K + 1 values, on K degrees of freedom
+    e = estimate(1.0, None, [1.2, 0.8, 1.4])
+    assert e["uncertainty"] == pytest.approx(float(np.std([1.0, 1.2, 0.8, 1.4], ddof=1))) and e["dof"] == 3
+    assert estimate(1.0, None, "[1.2, 0.8, 1.4]")["uncertainty"] == e["uncertainty"]   # as stored (JSON)
+    assert estimate(1.0, None, [1.2, float("nan"), 0.8])["dof"] == 2                    # a failed seed is left out
     e = estimate(1.0, [1.1, 0.9, 1.0, 1.0], 1.0 + math.sqrt(2) * 0.3)
     assert 1 <= e["dof"] <= 4 and e["uncertainty"] > 0.3
     from pbrbench.tasks.photometric_stereo import TASK
@@ -160,7 +165,22 @@ def test_seed_dependent_jobs_add_the_noise_seed_part():
     res = TASK.run_job(job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
     sc = {(s["algorithm"], s["metric"]): s for s in attach([s.as_dict() for s in res.scores], reps)}
     w = sc[("woodham1980", "normal_mean_deg")]
-    assert 0 < w["uncertainty"] < 0.2 * w["value"] and w["dof"] == 1
+    assert len(w["rep_noise"]) == NOISE_SEEDS and len(set(w["rep_noise"] + [w["value"]])) == NOISE_SEEDS + 1
+    assert 0 < w["uncertainty"] < 0.2 * w["value"] and w["dof"] == NOISE_SEEDS
+
+
+def test_the_noise_seed_part_of_a_difference_is_paired():
+    """Two seed-dependent scores of one ground truth scored with the same seeds: the seed's part of
+    their difference comes from the paired differences, so a common seed effect cancels; a score
+    whose other side does not depend on the seed keeps its own part."""
+    reps = [1.0, 1.0, 1.0, 1.0]
+    x = {"value": 2.0, "replicates": reps, "rep_noise": [2.5, 1.5, 2.2], "scene_hash": "h"}
+    ref = {"value": 1.0, "replicates": reps, "rep_noise": [1.5, 0.5, 1.2], "scene_hash": "h"}   # the same shifts
+    se, dof = paired(x, ref)
+    assert se == pytest.approx(0.0, abs=1e-12)
+    plain = {"value": 1.0, "replicates": reps, "rep_noise": None, "scene_hash": "h"}
+    se, dof = paired(x, plain)
+    assert se == pytest.approx(float(np.std([2.0, 2.5, 1.5, 2.2], ddof=1))) and dof == 3
 
 
 def test_a_flipped_discrete_choice_is_detected_and_smooth_scores_are_not():
