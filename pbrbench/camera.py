@@ -284,10 +284,12 @@ class Camera:
 
 def bracket_exposure_times(radiance, *, stops: float = 1.0, count: int | None = None,
                            gain: float = 1.0, headroom: float = 0.8, dark_target: float = 0.25,
-                           dark_percentile: float = 0.0, bright_percentile: float = 100.0) -> np.ndarray:
+                           dark_percentile: float = 0.0, bright_percentile: float = 100.0,
+                           bright: float | None = None) -> np.ndarray:
     """Exposure times (ascending) whose bracket covers the range of a radiance image.
 
-    The shortest time maps the bright end (``bright_percentile`` of the positive radiance) to
+    The shortest time maps the bright end (``bright_percentile`` of the positive radiance, or
+    ``bright`` when given: a radiance known without noise, such as a visible emitter's) to
     sensor exposure ``headroom`` (below clipping); the longest maps the dark end
     (``dark_percentile``) to ``dark_target``. Times are ``stops`` apart; ``count`` forces the
     number of exposures (starting from the shortest) instead of covering the dark end.
@@ -298,7 +300,9 @@ def bracket_exposure_times(radiance, *, stops: float = 1.0, count: int | None = 
         raise ValueError("radiance: no finite positive value; cannot choose exposure times")
     if not stops > 0:
         raise ValueError(f"stops: must be > 0, got {stops!r}")
-    hi = np.percentile(pos, bright_percentile)
+    if bright is not None and not (np.isfinite(bright) and bright > 0):
+        raise ValueError(f"bright: must be a positive radiance, got {bright!r}")
+    hi = float(bright) if bright is not None else np.percentile(pos, bright_percentile)
     lo = np.percentile(pos, dark_percentile)
     t_short = headroom / (gain * hi)
     if count is None:

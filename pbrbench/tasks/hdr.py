@@ -3,7 +3,10 @@
 Scene: ``hdr_scene`` (dynamic range >= 1e4).  Its ``radiance`` render (full light transport, hence
 the base condition ``global``) is the linear truth; a simulated camera
 (:class:`pbrbench.camera.Camera`: film-like S-shaped response, 8 bits, clipping) turns it into an
-exposure bracket whose times cover the scene's range (:func:`pbrbench.camera.bracket_exposure_times`).
+exposure bracket whose times cover the scene's range (:func:`pbrbench.camera.bracket_exposure_times`:
+from a visible emitter's radiance, known from the scene file, to the 0.5th percentile of the
+positive radiance; the brightest and the darkest pixel are the render's noisiest statistics, and a
+bracket designed from them changed its length between render seeds and between sample groups).
 Radiometric calibration does not care about light transport; its conditions are camera
 conditions, appended to the base:
 
@@ -75,23 +78,44 @@ RESPONSE = "film"
 BIT_DEPTH = 8
 ROUGH_TIMES = 0.07   # standard deviation of ln(true / stated exposure time), global+rough_times0.07
 SHIFT = 3            # largest offset (pixels, in x and in y) of an exposure, global+unregistered
+DARK_PERCENTILE = 0.5   # the bracket's dark end: this percentile of the positive radiance
+EMITTER_SEEN = 0.1      # an emitter is in view when the brightest pixel reaches this fraction of its radiance
 CONDITIONS = ("global+noise0", "global+readnoise0.002", "global+3x3stops", "global+clipped",
               "global+unregistered", f"global+rough_times{ROUGH_TIMES:g}")
 
 
-def camera_setup(condition: str, radiance: np.ndarray) -> tuple[Camera, np.ndarray]:
-    """The simulated camera and exposure times of a condition (see the module docstring)."""
+def camera_setup(condition: str, radiance: np.ndarray, bright: float | None = None) -> tuple[Camera, np.ndarray]:
+    """The simulated camera and exposure times of a condition (see the module docstring).
+
+    ``bright``: the bright end when it is known without render noise (the radiance of a
+    visible emitter, :func:`visible_emitter_radiance`); else the brightest pixel.  The dark end
+    is the :data:`DARK_PERCENTILE` of the positive radiance (the single darkest pixel is the
+    noisiest)."""
     _, mods = parse_condition(condition)
     read = mods.get("readnoise", 0.0)
     cam = Camera(RESPONSE, bit_depth=BIT_DEPTH, read_noise=read, full_well=1e4 if read > 0 else None,
                  exposure_error=mods.get("rough_times", 0.0))
     if "3x3stops" in mods:
-        times = bracket_exposure_times(radiance, stops=3.0, count=3)
+        times = bracket_exposure_times(radiance, stops=3.0, count=3, bright=bright)
     elif "clipped" in mods:
-        times = bracket_exposure_times(radiance, stops=1.0, headroom=1.0, bright_percentile=98.0)
+        times = bracket_exposure_times(radiance, stops=1.0, headroom=1.0, bright_percentile=98.0,
+                                       dark_percentile=DARK_PERCENTILE)
     else:
-        times = bracket_exposure_times(radiance, stops=1.0)
+        times = bracket_exposure_times(radiance, stops=1.0, bright=bright, dark_percentile=DARK_PERCENTILE)
     return cam, times
+
+
+def visible_emitter_radiance(spec, radiance: np.ndarray) -> float | None:
+    """The largest radiance of the scene's area emitters when the image sees one (its brightest
+    pixel reaches :data:`EMITTER_SEEN` of it), else None.  A bracket designed from the brightest
+    pixel follows the render's noise: at draft an emitter covers a few pixels partially, their
+    values are Monte Carlo estimates of its coverage, and they moved the shortest time by a stop
+    (and the number of exposures by one) between render seeds and between sample groups."""
+    if spec is None:
+        return None
+    L = max((max(light.radiance) for light in (*spec.lights, *spec.light_set) if light.type == "area"), default=0.0)
+    hi = float(np.max(radiance, initial=0.0))
+    return float(L) if L > 0 and hi >= EMITTER_SEEN * L else None
 
 
 def unregistered_bracket(cam: Camera, radiance: np.ndarray, exposure_times, offsets, *, shift: int = SHIFT,
@@ -288,8 +312,13 @@ class HDRTask(Task):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
-    @staticmethod
-    def _bracket(job: Job, gt, seed: int):
+    def _spec(self, job: Job):
+        try:
+            return self.scenes.spec(job.scene)
+        except (ValueError, OSError):
+            return None      # a ground truth without a library scene file: the bracket from its pixels
+
+    def _bracket(self, job: Job, gt, seed: int):
         """(radiance, its positive pixels, the simulated bracket, the pixels it measures (in every
         channel some exposure neither black nor saturated), their fraction, the images calibration
         is given).  Under ``unregistered`` the radiance is the common crop, the bracket its
@@ -300,13 +329,14 @@ class HDRTask(Task):
         cap_seed = int(rng.integers(0, 2 ** 31 - 1))
         if "unregistered" in mods:
             inner = rad[SHIFT:rad.shape[0] - SHIFT, SHIFT:rad.shape[1] - SHIFT]
-            cam, times = camera_setup(job.condition, inner[np.all(inner > 0, axis=-1)])
+            pos = inner[np.all(inner > 0, axis=-1)]
+            cam, times = camera_setup(job.condition, pos, visible_emitter_radiance(self._spec(job), pos))
             offsets = rng.integers(-SHIFT, SHIFT + 1, (len(times), 2))
             rad, br, images = unregistered_bracket(cam, rad, times, offsets, shift=SHIFT, seed=cap_seed)
             mask = np.all(rad > 0, axis=-1)
         else:
             mask = np.all(rad > 0, axis=-1)
-            cam, times = camera_setup(job.condition, rad[mask])
+            cam, times = camera_setup(job.condition, rad[mask], visible_emitter_radiance(self._spec(job), rad[mask]))
             br = cam.capture(rad, times, seed=cap_seed)
             images = br.images
         top = br.levels - 1
