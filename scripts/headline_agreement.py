@@ -60,6 +60,16 @@ def main(argv):
     expect = sum(_p(a[k], b[k]) for k in common)
     print(f"  expected with exact standard errors on the cells' degrees of freedom: {expect:.1f} of {n} "
           f"({100 * expect / max(n, 1):.1f} %)")
+
+    def _t_ok(x, y):
+        se_x, se_y = (c["se"] if math.isfinite(c["se"]) else 0.0 for c in (x, y))
+        se, nu = combined((se_x, x.get("dof") or math.inf), (se_y, y.get("dof") or math.inf))
+        tq = float(stats.norm.ppf(0.975)) if not math.isfinite(nu) else float(stats.t.ppf(0.975, nu))
+        return abs(x["value"] - y["value"]) <= tq * se + 1e-6 + 1e-3 * max(abs(x["value"]), abs(y["value"]))
+
+    nt_ok = sum(1 for k in common if _t_ok(a[k], b[k]))
+    print(f"  within the 95 % Student-t interval of the difference (its Welch-Satterthwaite dof): {nt_ok} of {n} "
+          f"({100 * nt_ok / max(n, 1):.1f} %; 95 % expected)")
     unst = {k for k in common if a[k].get("unstable") or b[k].get("unstable")}
     ns = n - len(unst)
     bs = sum(1 for k, *_ in bad if k not in unst)
