@@ -191,29 +191,33 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
         for _ in range(max(1, budget)):
             sweeps += 1
             dsum = 0.0
+            # a pixel's reflectance terms depend on its own (p, q) only, which the other colour's
+            # half-sweep leaves unchanged: computed once per sweep, they are the same numbers
+            r, rp, rq = _reflectance(P, Q, s)
+            pos = r > 0
+            res = np.where(pos, E - r, np.where(shadow, 0.0, E))
+            rp *= pos
+            rq *= pos
+            res_p, res_q = res * rp, res * rq
+            a11 = rp * rp + lam_k * nn + 0.25 * mu * nx
+            a22 = rq * rq + lam_k * nn + 0.25 * mu * ny
+            a12 = rp * rq
+            det = a11 * a22 - a12 * a12
+            det = np.where(det > 1e-12, det, 1e-12)
+            dzx, dzy = Z[:, 1:] - Z[:, :-1], Z[:-1, :] - Z[1:, :]     # z moves only after both colours
             for col in colours:
-                r, rp, rq = _reflectance(P, Q, s)
-                pos = r > 0
-                res = np.where(pos, E - r, np.where(shadow, 0.0, E))
-                rp *= pos
-                rq *= pos
                 # integrability targets seen from each pixel: c = z_b - z_a - p_b / 2 on its x-edges
                 cx = np.zeros_like(E)
-                cx[:, :-1] += ex * (Z[:, 1:] - Z[:, :-1] - 0.5 * P[:, 1:])
-                cx[:, 1:] += ex * (Z[:, 1:] - Z[:, :-1] - 0.5 * P[:, :-1])
+                cx[:, :-1] += ex * (dzx - 0.5 * P[:, 1:])
+                cx[:, 1:] += ex * (dzx - 0.5 * P[:, :-1])
                 # y-edges a (row i) -> b (row i+1): z_b - z_a + (q_a + q_b)/2; target for q_a is
                 # -(z_b - z_a) - q_b / 2
                 cy = np.zeros_like(E)
-                cy[:-1, :] += ey * (Z[:-1, :] - Z[1:, :] - 0.5 * Q[1:, :])
-                cy[1:, :] += ey * (Z[:-1, :] - Z[1:, :] - 0.5 * Q[:-1, :])
+                cy[:-1, :] += ey * (dzy - 0.5 * Q[1:, :])
+                cy[1:, :] += ey * (dzy - 0.5 * Q[:-1, :])
                 # quadratic model per pixel in (dp, dq): [[a11, a12], [a12, a22]] d = [b1, b2]
-                a11 = rp * rp + lam_k * nn + 0.25 * mu * nx
-                a22 = rq * rq + lam_k * nn + 0.25 * mu * ny
-                a12 = rp * rq
-                b1 = (res * rp + lam_k * (_nb_sum(P, ex, ey) - nn * P) + 0.5 * mu * (cx - 0.5 * nx * P))
-                b2 = (res * rq + lam_k * (_nb_sum(Q, ex, ey) - nn * Q) + 0.5 * mu * (cy - 0.5 * ny * Q))
-                det = a11 * a22 - a12 * a12
-                det = np.where(det > 1e-12, det, 1e-12)
+                b1 = (res_p + lam_k * (_nb_sum(P, ex, ey) - nn * P) + 0.5 * mu * (cx - 0.5 * nx * P))
+                b2 = (res_q + lam_k * (_nb_sum(Q, ex, ey) - nn * Q) + 0.5 * mu * (cy - 0.5 * ny * Q))
                 dp = (a22 * b1 - a12 * b2) / det
                 dq = (a11 * b2 - a12 * b1) / det
                 dp = np.where(col, omega * dp, 0.0)
