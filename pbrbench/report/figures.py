@@ -148,7 +148,7 @@ def _series(plot: dict) -> list[tuple[str, list, list, dict]]:
         style = {}
         if isinstance(s, dict):
             x, y = s.get("x", x0), s.get("y", [])
-            style = {k: s[k] for k in ("linestyle", "marker", "color") if k in s}
+            style = {k: s[k] for k in ("linestyle", "marker", "color", "markersize") if k in s}
         else:
             x, y = x0, s
         if x is None:
@@ -160,7 +160,9 @@ def _series(plot: dict) -> list[tuple[str, list, list, dict]]:
 def plot_png(name: str, plot: dict) -> bytes:
     """A line plot from ``{"x": [...], "series": {label: [...] | {"x", "y"}}, "xlabel", "ylabel"}``.
 
-    Optional keys: ``title``, ``logx``, ``logy``, ``kind`` ("line" default, or "scatter").
+    Optional keys: ``title``, ``logx``, ``logy``, ``kind`` ("line" default, or "scatter"); a
+    series dict may set ``color``, ``marker``, ``markersize`` and ``linestyle``, and a label that
+    starts with ``_`` is left out of the legend.
     """
     fig = _figure(PLOT_SIZE)
     ax = fig.add_axes((0.11, 0.12, 0.86, 0.78))
@@ -170,7 +172,8 @@ def plot_png(name: str, plot: dict) -> bytes:
             ax.scatter(x, y, s=10, label=label)
         else:
             ax.plot(x, y, label=label, marker=style.get("marker", "o" if len(y) <= 12 else None),
-                    markersize=3, linestyle=style.get("linestyle", "-"), color=style.get("color"))
+                    markersize=style.get("markersize", 3), linestyle=style.get("linestyle", "-"),
+                    color=style.get("color"))
     ax.set_xlabel(str(plot.get("xlabel", "")), fontsize=10)
     ax.set_ylabel(str(plot.get("ylabel", "")), fontsize=10)
     ax.set_title(str(plot.get("title", name)), fontsize=11)
@@ -180,8 +183,9 @@ def plot_png(name: str, plot: dict) -> bytes:
         ax.set_yscale("log")
     ax.tick_params(labelsize=9)
     ax.grid(alpha=0.3)
-    if series:
-        ax.legend(fontsize=8, loc="best")
+    if series:   # a label starting with "_" stays out of the legend (matplotlib's rule)
+        shown = sum(1 for label, *_ in series if not label.startswith("_"))
+        ax.legend(fontsize=8, loc="best", ncol=2 if shown > 8 else 1)
     return _save(fig)
 
 

@@ -113,20 +113,35 @@ def _groove(task, job, gts, quality) -> JobResult:
         top["radiance"], 0.9 * _exposure(top["radiance"], _vis(top)))
     if fam == "groove_reflex_parallel":
         res.plots["Fig 1.19 gain of interreflection: a patch at unit height above a plane of radiosity sin(omega x)"] = \
-            _gain_plot()
+            _gain_plot(quality)
     return res
 
 
-def _gain_plot() -> dict:
+GAIN_SLANTS = 10                        # the chapter's curves: slants 0 to pi/2 in 10 steps
+GAIN_MITSUBA_OMEGAS = (0.5, 1.0, 2.0, 3.0, 4.0)
+GAIN_MITSUBA_SLANTS = (0, 4, 8)         # indices into the slants: 0, 40 and 80 degrees
+
+
+def _gain_plot(quality) -> dict:
+    """Fig 1.19: the kernel integral's gain at the chapter's ten slants and, as points, the gain
+    Mitsuba's irradiance meter measures (:func:`pbrbench.render.proofs.gain.measure_gain_mitsuba`,
+    four phases, the validate check's samples at this quality) at three of them; about 0.2 s a
+    point."""
+    from pbrbench.render.proofs.gain import GAIN_SPP, measure_gain_mitsuba
     from pbrbench.shading.gain_curve import gain_curve
 
     om = np.linspace(0.0, 6.0, 61)
-    slants = np.radians([0.0, 30.0, 60.0, 80.0])
+    slants = np.linspace(0.0, np.pi / 2, GAIN_SLANTS)
     G = gain_curve(om, slants)
     series = {f"slant {np.degrees(s):.0f} deg": _series(om, G[k], f"C{k}", marker="") for k, s in enumerate(slants)}
+    spp = quality.spp(GAIN_SPP) if quality is not None else GAIN_SPP
+    for n, k in enumerate(GAIN_MITSUBA_SLANTS):
+        g = [measure_gain_mitsuba(w, float(slants[k]), spp=spp, seed=k)["gain"] for w in GAIN_MITSUBA_OMEGAS]
+        label = "Mitsuba irradiance meter (points)" if n == 0 else f"_Mitsuba, slant {np.degrees(slants[k]):.0f} deg"
+        series[label] = _series(GAIN_MITSUBA_OMEGAS, g, f"C{k}", marker="o", linestyle="", markersize=6)
     return {"x": None, "series": series, "xlabel": "spatial frequency omega (1 / distance)",
             "ylabel": "gain |H(omega, slant)|",
-            "title": "Fig 1.19: high spatial frequencies do not jump the gap (kernel integral)"}
+            "title": "Fig 1.19: high frequencies do not jump the gap (lines: kernel; points: Mitsuba)"}
 
 
 def _rooms(task, job, gts, quality) -> JobResult:

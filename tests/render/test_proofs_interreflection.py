@@ -188,6 +188,28 @@ def test_gain_curve(cache):
 
 
 @pytest.mark.render
+def test_the_gallery_gain_figure_has_the_chapters_ten_slants_and_mitsuba_points():
+    """Fig 1.19 of the gallery: the kernel integral at slants 0 to 90 degrees in 10 steps (the
+    chapter's), and Mitsuba's measured gain at three of them, each point on its curve within the
+    meter's noise (sd <= sqrt(2) / (2 sqrt(spp))) plus the finite plane's and the curve's
+    sampling (0.01)."""
+    from pbrbench.render.proofs.gain import GAIN_SPP
+    from pbrbench.shading.gain_curve import gain_curve
+    from pbrbench.tasks._interreflection_figures import GAIN_MITSUBA_OMEGAS, _gain_plot
+
+    fig = _gain_plot(DRAFT)
+    curves = [k for k in fig["series"] if k.startswith("slant ")]
+    assert [int(k.split()[1]) for k in curves] == list(range(0, 91, 10))
+    points = {k: v for k, v in fig["series"].items() if "Mitsuba" in k}
+    assert len(points) == 3 and sum(not k.startswith("_") for k in points) == 1      # one legend entry
+    sd = np.sqrt(2) / (2 * np.sqrt(DRAFT.spp(GAIN_SPP)))
+    for v in points.values():
+        slant = np.radians(next(int(c.split()[1]) for c in curves if fig["series"][c]["color"] == v["color"]))
+        assert v["x"] == list(GAIN_MITSUBA_OMEGAS)
+        np.testing.assert_allclose(v["y"], gain_curve(np.array(v["x"]), [slant])[0], atol=5 * sd + 0.01)
+
+
+@pytest.mark.render
 @pytest.mark.slow
 def test_mitsuba_measures_the_gain():
     """Four phases rendered with an irradiance meter.

@@ -32,7 +32,6 @@ __all__ = ["gain_mitsuba_dict", "measure_gain_mitsuba", "check_gain_curve", "GAI
 
 GAIN_SPP = 1 << 18                 # samples per phase at standard (scaled by the quality profile)
 GAIN_POINTS = ((0.5, 0.0), (1.0, 0.0), (2.0, 0.0), (4.0, 0.0), (1.0, 0.7), (2.0, 0.7), (1.0, 1.4), (2.0, 1.4))
-GAIN_POINTS_SHORT = ((1.0, 0.0), (2.0, 0.7))
 
 
 def gain_mitsuba_dict(mi, desc: dict, *, spp: int = 1 << 18) -> dict:
@@ -86,14 +85,14 @@ def measure_gain_mitsuba(omega: float, slant: float, *, spp: int = 1 << 18, seed
 
 def check_gain_curve(quality: Quality, cache, *, figures=None, points=None, seed: int = 0) -> list[Record]:
     """``gain_curve``: Mitsuba's measured gain against the kernel integral at (omega, slant) points
-    (all of :data:`GAIN_POINTS` at standard, two in a short profile), ``GAIN_SPP`` samples per
+    (:data:`GAIN_POINTS` at every quality: a point costs about 0.2 s), ``GAIN_SPP`` samples per
     phase scaled like a render's."""
     from scipy.stats import norm
 
     from pbrbench.shading.gain_curve import gain_response
 
     q = require(quality)
-    pts = tuple(points) if points is not None else q.pick(GAIN_POINTS, GAIN_POINTS_SHORT)
+    pts = tuple(points) if points is not None else GAIN_POINTS
     spp = q.spp(GAIN_SPP)
     sd = np.sqrt(2) / (2 * np.sqrt(spp))
     z = float(norm.isf(0.01 / (2 * len(pts))))
