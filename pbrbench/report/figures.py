@@ -16,6 +16,7 @@ import re
 import numpy as np
 
 MAX_SIDE = 160          # images larger than this are box-downsampled (integer factor) for the report
+STRIP = 4               # ... except that a row of panels (a bracket, a composite) may be this many times as wide
 PLOT_SIZE = (7.0, 4.4)
 DPI = 90
 
@@ -28,7 +29,7 @@ def slug(text: str, n: int = 60) -> str:
 
 def _downsample(a: np.ndarray) -> np.ndarray:
     h, w = a.shape[:2]
-    f = int(math.ceil(max(h, w) / MAX_SIDE))
+    f = int(math.ceil(max(h, w / STRIP) / MAX_SIDE))
     if f <= 1:
         return a
     h2, w2 = h // f * f, w // f * f

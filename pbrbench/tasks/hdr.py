@@ -360,7 +360,11 @@ class HDRTask(Task):
         res.images[f"input: exposure {k_mid + 1} of {len(times)}"] = display(images[k_mid].astype(float) / (br.levels - 1))
         res.images["pixels no exposure measures (white)"] = display((mask & ~domain).astype(float))
         levels = np.arange(br.levels)
-        curves = {"true": np.log2(np.maximum(br.true_inverse[:, 1], 1e-12))}
+        curves = {"true": _log2_inverse(br.true_inverse[:, 1])}
+        fig_1_10 = job.condition == self.reference_condition
+        if fig_1_10:
+            res.images[f"Fig 1.10 exposure bracket: 4 of the {len(times)} exposures, shortest to longest"] = \
+                bracket_montage(images, br.levels)
         shown = set()
         for alg in algorithms:
             kw = {"truth": br} if alg.kind == "floor" else {}
@@ -381,7 +385,11 @@ class HDRTask(Task):
                 continue
             if alg.kind != "floor":
                 sc["response_rmse"] = response_rmse(resp.inverse, br.true_inverse)
-                curves[alg.name] = np.log2(np.maximum(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)], 1e-12))
+                curves[alg.name] = _log2_inverse(resp.inverse[:, min(1, resp.inverse.shape[1] - 1)])
+                if fig_1_10 and alg.kind == "method" and "Fig 1.10" not in " ".join(res.plots):
+                    res.plots[f"Fig 1.10 inverse response of each channel: {alg.name}"] = channel_curves(resp, br)
+                    res.images[f"Fig 1.10 composite ({alg.name}): whole range, and the boxes each scaled to "
+                               "the print range"] = composite_with_boxes(est, dom=domain if domain.any() else mask)
             book.add(alg.name, sc, t.seconds)
             if alg.kind in ("method", "baseline") and alg.kind not in shown:  # the first of each
                 shown.add(alg.kind)
@@ -402,9 +410,93 @@ class HDRTask(Task):
                     book.add(alg.name, sc, t.seconds)
         res.plots["inverse response (green channel)"] = profile_plot(
             levels, curves, "pixel level", "log2 relative exposure f^-1(z)",
-            note="gauge: f^-1(top level) = 1 for every curve")
+            note="gauge: f^-1(top level) = 1 for every curve; level 0 (black) has no exposure")
         res.scores = book.scores
         return res
+
+
+def _log2_inverse(inv) -> np.ndarray:
+    """``log2 f^-1(z)`` for plotting; NaN at level 0 and wherever ``f^-1`` is not positive (black
+    records no exposure: its -40 would squash every curve)."""
+    v = np.asarray(inv, float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = np.where(v > 0, np.log2(np.where(v > 0, v, 1.0)), np.nan)
+    out[:1] = np.nan
+    return out
+
+
+def bracket_montage(images, levels: int, n: int = 4, gap: int = 2) -> np.ndarray:
+    """``n`` exposures of the bracket, evenly spaced from the shortest to the longest, side by
+    side as the camera recorded them (pixel value / top level) with white gaps: Fig 1.10's row."""
+    imgs = np.asarray(images, float) / (levels - 1)
+    ks = np.unique(np.round(np.linspace(0, imgs.shape[0] - 1, min(n, imgs.shape[0]))).astype(int))
+    H = imgs.shape[1]
+    parts = []
+    for i, k in enumerate(ks):
+        if i:
+            parts.append(np.ones((H, gap, imgs.shape[-1])))
+        parts.append(imgs[k])
+    return display(np.concatenate(parts, axis=1), max_size=1 << 16)   # the report sizes the strip
+
+
+def channel_curves(resp, br) -> dict:
+    """Fig 1.10's plot: ``log2 f^-1(z)`` of each channel of a calibrated response (solid) and the
+    camera's true inverse (dashed), levels 1 to the top."""
+    levels = np.arange(br.levels)
+    series = {}
+    for c, (name, col) in enumerate(zip("RGB", ("#d62728", "#2ca02c", "#1f77b4"), strict=True)):
+        cc = min(c, resp.inverse.shape[1] - 1)
+        series[f"{name}: calibrated"] = {"x": levels.tolist(), "y": _nan_list(_log2_inverse(resp.inverse[:, cc])),
+                                         "color": col, "marker": ""}
+        series[f"{name}: true"] = {"x": levels.tolist(), "y": _nan_list(_log2_inverse(br.true_inverse[:, min(c, br.true_inverse.shape[1] - 1)])),
+                                   "color": col, "marker": "", "linestyle": "--"}
+    return {"x": None, "series": series, "xlabel": "pixel level z", "ylabel": "log2 relative exposure f^-1(z)",
+            "title": f"Fig 1.10: inverse response per channel ({resp.method}; dashed: the camera's, one curve for R, G, B)"}
+
+
+def _nan_list(a) -> list:
+    return [None if not np.isfinite(v) else float(v) for v in np.asarray(a, float)]
+
+
+def composite_with_boxes(est, dom, box_frac: float = 0.25) -> np.ndarray:
+    """Fig 1.10's composite: the merged radiance over its whole range (log-mapped to [0, 1]),
+    and beside it, enlarged to the same height, its brightest and its darkest box (each side
+    ``box_frac`` of the image) each scaled linearly to the print range [0, 1] (its 90th percentile
+    white: an emitter in the box clips, the surfaces around it show); the boxes are
+    outlined on the whole view (red: bright, blue: dark).  Display-ready RGB."""
+    L = np.where(np.asarray(dom, bool)[..., None], np.maximum(np.asarray(est, float), 0.0), 0.0)
+    Y = L.mean(-1)
+    H, W = Y.shape
+    b = max(2, int(round(box_frac * min(H, W))))
+    pos = Y[Y > 0]
+    if pos.size == 0 or H < b or W < b:
+        return display(np.zeros((H, W, 3)))
+    lo, hi = np.percentile(pos, 0.5), np.percentile(pos, 99.9)
+    whole = np.clip(np.log(np.maximum(L, lo) / lo) / np.log(max(hi / lo, 1.0 + 1e-9)), 0.0, 1.0)
+    # box means of the luminance on a grid of box positions; the brightest and darkest (lit) box
+    cs = np.cumsum(np.cumsum(np.pad(Y, ((1, 0), (1, 0))), 0), 1)
+    sums = cs[b:, b:] - cs[:-b, b:] - cs[b:, :-b] + cs[:-b, :-b]
+    lit = np.cumsum(np.cumsum(np.pad((Y > 0).astype(float), ((1, 0), (1, 0))), 0), 1)
+    full = (lit[b:, b:] - lit[:-b, b:] - lit[b:, :-b] + lit[:-b, :-b]) >= 0.9 * b * b
+    means = np.where(full, sums / (b * b), np.nan)
+    if not np.isfinite(means).any():
+        return display(whole)
+    boxes = [np.unravel_index(np.nanargmax(means), means.shape), np.unravel_index(np.nanargmin(means), means.shape)]
+    panels, out = [], whole.copy()
+    for (i, j), col in zip(boxes, ((1.0, 0.0, 0.0), (0.0, 0.3, 1.0)), strict=True):
+        crop = L[i:i + b, j:j + b]
+        top = np.percentile(crop[crop > 0], 90.0) if (crop > 0).any() else 1.0   # an emitter in the box clips
+        k = max(1, H // b)
+        panels.append(np.kron(np.clip(crop / top, 0.0, 1.0), np.ones((k, k, 1)))[:H])
+        out[i, j:j + b] = out[i + b - 1, j:j + b] = col
+        out[i:i + b, j] = out[i:i + b, j + b - 1] = col
+    gap = np.ones((H, 2, 3))
+    rows = [out]
+    for p in panels:
+        pad = np.zeros((H, p.shape[1], 3))
+        pad[:p.shape[0]] = p
+        rows += [gap, pad]
+    return display(np.concatenate(rows, axis=1), max_size=1 << 16)
 
 
 TASK = HDRTask()

@@ -37,6 +37,35 @@ def test_hdr_true_response_floor_beats_ignoring_the_response():
         assert sc[(alg, "response_rmse")] < sc[("baseline:ignore_response", "response_rmse")]
     plot = res.plots["inverse response (green channel)"]
     assert len(plot["x"]) == 256 and {"true", "debevec1997", "baseline:ignore_response"} <= set(plot["series"])
+    # level 0 records no exposure: no -40 at the black end to squash the curves
+    assert all(curve[0] is None and min(x for x in curve if x is not None) > -20 for curve in plot["series"].values())
+    # Fig 1.10: the bracket, the per-channel curves and the composite with its boxes
+    figs = [n for n in (*res.images, *res.plots) if n.startswith("Fig 1.10")]
+    assert len(figs) == 3
+    (curves,) = [v for n, v in res.plots.items() if n.startswith("Fig 1.10")]
+    assert {k.split(":")[0] for k in curves["series"]} == {"R", "G", "B"}
+
+
+def test_fig_1_10_bracket_and_composite_on_known_images():
+    from pbrbench.tasks.hdr import _log2_inverse, bracket_montage, composite_with_boxes
+
+    imgs = np.stack([np.full((6, 5, 3), 10 * k, np.uint8) for k in range(7)])     # exposure k: level 10 k
+    m = bracket_montage(imgs, 256, n=4, gap=2)
+    assert m.shape == (6, 4 * 5 + 3 * 2, 3)
+    assert m[0, 0, 0] == 0 and m[0, -1, 0] == pytest.approx(60 / 255)             # the shortest and the longest
+    assert np.all(m[:, 5:7] == 1.0)                                                # a white gap
+    assert np.isnan(_log2_inverse(np.array([0.0, 0.25, 1.0]))[0])
+    assert _log2_inverse(np.array([0.0, 0.25, 1.0]))[1:].tolist() == [-2.0, 0.0]
+    # a bright square top left, a dark one bottom right: each box found, each scaled to [0, 1]
+    L = np.full((16, 16, 3), 1.0)
+    L[:4, :4] = 1000.0 * (1 + np.arange(4))[None, :, None]
+    L[12:, 12:] = 0.001 * (1 + np.arange(4))[:, None, None]
+    out = composite_with_boxes(L, np.ones((16, 16), bool))
+    assert out.shape[0] == 16 and out.shape[1] == 16 + 2 * (2 + 16)
+    bright, dark = out[:, 18:34], out[:, 36:52]
+    assert bright.max() == 1.0 and np.ptp(bright) > 0.5          # the bright box's gradient is visible
+    assert dark.max() == 1.0 and np.ptp(dark[:16, :16]) > 0.5    # so is the dark one's
+    assert tuple(out[0, 0]) == (1.0, 0.0, 0.0) and tuple(out[15, 15]) == (0.0, 0.3, 1.0)  # the outlines
 
 
 
