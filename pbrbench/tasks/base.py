@@ -152,6 +152,14 @@ class Task:
             return SceneLibrary()
         return self.library
 
+    def library_spec(self, name: str):
+        """The scene file's spec of ``name`` from the task's library, or None when ``name`` is not
+        a library scene (a ground truth made in a test or read from disk)."""
+        try:
+            return self.scenes.spec(name)
+        except (ValueError, OSError):
+            return None
+
     def seed_dependent(self, job: Job) -> bool:
         """Whether the job's inputs depend on the seed (then its standard error includes a second
         seed, :mod:`pbrbench.bench.uncertainty`): a noise modifier with a positive level."""

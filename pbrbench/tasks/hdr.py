@@ -312,12 +312,6 @@ class HDRTask(Task):
                 out += [Job(self.name, s.name, c) for c in self.conditions]
         return out
 
-    def _spec(self, job: Job):
-        try:
-            return self.scenes.spec(job.scene)
-        except (ValueError, OSError):
-            return None      # a ground truth without a library scene file: the bracket from its pixels
-
     def _bracket(self, job: Job, gt, seed: int):
         """(radiance, its positive pixels, the simulated bracket, the pixels it measures (in every
         channel some exposure neither black nor saturated), their fraction, the images calibration
@@ -330,13 +324,13 @@ class HDRTask(Task):
         if "unregistered" in mods:
             inner = rad[SHIFT:rad.shape[0] - SHIFT, SHIFT:rad.shape[1] - SHIFT]
             pos = inner[np.all(inner > 0, axis=-1)]
-            cam, times = camera_setup(job.condition, pos, visible_emitter_radiance(self._spec(job), pos))
+            cam, times = camera_setup(job.condition, pos, visible_emitter_radiance(self.library_spec(job.scene), pos))
             offsets = rng.integers(-SHIFT, SHIFT + 1, (len(times), 2))
             rad, br, images = unregistered_bracket(cam, rad, times, offsets, shift=SHIFT, seed=cap_seed)
             mask = np.all(rad > 0, axis=-1)
         else:
             mask = np.all(rad > 0, axis=-1)
-            cam, times = camera_setup(job.condition, rad[mask], visible_emitter_radiance(self._spec(job), rad[mask]))
+            cam, times = camera_setup(job.condition, rad[mask], visible_emitter_radiance(self.library_spec(job.scene), rad[mask]))
             br = cam.capture(rad, times, seed=cap_seed)
             images = br.images
         top = br.levels - 1

@@ -270,6 +270,9 @@ class SFSTask(Task):
         res = JobResult(job)
         res.images["linear:input"] = display(img)
         res.images["normals: truth"] = normals_display(n_true, mask)
+        if job.condition == "local" and label == "oblique" and job.scene == "sfs_sphere":
+            res.plots["Fig 1.3 Lambert's cosine law: the rendered sphere's radiance against the cosine of "
+                      "the angle between normal and source"] = cosine_law_plot(gt, img, light, irr)
         row = img.shape[0] // 2
         zt_row = np.where(mask[row], z_true[row] - z_true[mask].mean(), np.nan)
         prof = {"truth": zt_row}
@@ -322,6 +325,33 @@ class SFSTask(Task):
             np.arange(img.shape[1]) * px, prof, "x (world units from the left edge)", "height (offset removed)")
         res.scores = book.scores
         return res
+
+
+def cosine_law_plot(gt, image, light, irradiance: float, n_points: int = 1500) -> dict:
+    """Fig 1.3 from a render: ``pi L / (rho E)`` of every fully covered pixel of ``image`` (the
+    job's direct-light image of one source, grey) against ``N . S`` (the AOV normal, the unit
+    source direction), with Lambert's ``max(0, N . S)``; a tilted patch collects light in
+    proportion to the cosine."""
+    s = np.asarray(light, float)
+    s = s / np.linalg.norm(s)
+    m = np.asarray(gt.mask, bool)
+    cos = (np.asarray(gt["normals"], float) @ s)[m]
+    rho = grey(gt["albedo"])[m]
+    L = np.asarray(image, float)[m]
+    ok = rho > 0
+    y = np.pi * L[ok] / (rho[ok] * irradiance)
+    x = cos[ok]
+    if x.size > n_points:
+        idx = np.random.default_rng(0).choice(x.size, n_points, replace=False)
+        x, y = x[idx], y[idx]
+    line = np.linspace(-0.3, 1.0, 27)
+    return {"x": None, "series": {
+        "Lambert: max(0, cos theta)": {"x": line.tolist(), "y": np.maximum(line, 0.0).tolist(), "color": "0.6",
+                                       "marker": ""},
+        "rendered pixels (direct light)": {"x": x.tolist(), "y": y.tolist(), "color": "C0", "marker": ".",
+                                           "linestyle": "", "markersize": 3}},
+        "xlabel": "cos theta = N . S", "ylabel": "pi L / (albedo E)",
+        "title": "Fig 1.3: brightness follows the cosine of the angle to the source"}
 
 
 TASK = SFSTask()

@@ -109,6 +109,12 @@ class SpecularTask(Task):
         res.images["linear:input"] = display(img)
         res.images["linear:truth (diffuse-only twin)"] = display(twin)
         res.images["specular mask: truth"] = display(true_mask.astype(float))
+        if job.condition == self.reference_condition:
+            spec = self.library_spec(job.scene)
+            fig = specular_direction_figure(spec, gt, img) if spec is not None else None
+            if fig is not None:
+                res.images["Figs 1.1-1.2 a specularity lies along the specular direction: the rendered sphere, "
+                           "the pixel whose normal bisects source and view marked (+)"] = fig
 
         def check_removed(o):
             return check_array(o, "removed", img.shape)
@@ -145,6 +151,36 @@ class SpecularTask(Task):
                     np.where(obj, np.abs(grey(out) - grey(twin)) / ref_b, np.nan))
         res.scores = book.scores
         return res
+
+
+def specular_direction_figure(spec, gt, img):
+    """Figs 1.1-1.2 from a render: the image (tone-mapped, display-ready) with a red cross on the
+    pixel whose normal is closest to the half vector ``H = (S + V) / |S + V|`` of the scene's
+    directional source ``S`` and the view ``V`` (the camera's +z): a mirror there reflects the
+    source into the camera, and the specularity sits on it.  None without a directional source."""
+    from pbrbench.io import tonemap
+    from pbrbench.scene.geometry import nominal_light
+
+    lights = [li for li in spec.lights if li.type == "directional"]
+    if not lights:
+        return None
+    S, _ = nominal_light(lights[0], spec.camera)
+    H = S + np.array([0.0, 0.0, 1.0])
+    H /= np.linalg.norm(H)
+    m = np.asarray(gt.mask, bool)
+    if not m.any():
+        return None
+    score = np.where(m, np.asarray(gt["normals"], float) @ H, -np.inf)
+    i, j = np.unravel_index(int(np.argmax(score)), score.shape)
+    out = tonemap(img).astype(float) / 255.0
+    if out.ndim == 2 or out.shape[-1] == 1:
+        out = np.repeat(out.reshape(*out.shape[:2], 1), 3, axis=-1)
+    r = max(2, img.shape[0] // 24)
+    for di in range(-r, r + 1):
+        for ii, jj in ((i + di, j), (i, j + di)):
+            if 0 <= ii < out.shape[0] and 0 <= jj < out.shape[1]:
+                out[ii, jj] = (1.0, 0.0, 0.0)
+    return display(out)
 
 
 TASK = SpecularTask()

@@ -29,8 +29,11 @@ def test_sfs_methods_references_labels_and_conditions():
     assert next(s for s in res.scores if s.metric == "converged").better == "higher"
     assert all(np.isfinite(s.value) for s in res.scores)
     assert all(sc[(m, "failed")] == 0 for m in ("horn1989", "tsai_shah1994", "pentland1990", "kimmel2001"))
-    (plot,) = res.plots.values()
+    (plot,) = [v for k, v in res.plots.items() if k.startswith("height profile")]
     assert {"truth", "baseline:flat", "floor:integrate_true_normals", "horn1989"} <= set(plot["series"])
+    (law,) = [v for k, v in res.plots.items() if k.startswith("Fig 1.3")]      # the oblique sphere: Lambert's law
+    pts = law["series"]["rendered pixels (direct light)"]
+    np.testing.assert_allclose(pts["y"], np.maximum(pts["x"], 0.0), atol=0.05)
     # 'global' reads light00.radiance (x1.1 here: the known albedo is violated) and skips the
     # estimated-light variants
     glob = scores_of(run_task(TASK, Job(job.task, job.scene, "global", job.params), {"sfs_sphere": gt}))
@@ -62,3 +65,23 @@ def test_sfs_kimmel2001_without_singular_point_is_scored():
     assert sc[("kimmel2001", "failed")] == 0.0
     assert sc[("kimmel2001", "normal_mean_deg")] < sc[("baseline:flat", "normal_mean_deg")]
 
+
+
+def test_fig_1_3_the_cosine_law_plot_of_an_exact_lambertian_sphere_lies_on_the_law():
+    import numpy as np
+
+    from pbrbench.render.groundtruth import GroundTruth
+    from pbrbench.shading.surfaces import on_grid
+    from pbrbench.tasks.sfs import cosine_law_plot
+
+    s = on_grid("sphere", 48, 1.1)
+    S = np.array([0.6, 0.0, 0.8])
+    rho, E = 0.7, 2.0
+    img = np.where(s.mask, rho * E / np.pi * np.clip(s.normals @ S, 0, None), 0.0)
+    gt = GroundTruth({"normals": s.normals.astype(np.float32), "mask": s.mask.astype(np.float32),
+                      "albedo": np.full((48, 48, 3), rho, np.float32)}, {"scene_hash": "t"})
+    p = cosine_law_plot(gt, img, 3.0 * S, E)          # any length of the source vector
+    pts = p["series"]["rendered pixels (direct light)"]
+    x, y = np.array(pts["x"]), np.array(pts["y"])
+    assert x.min() < 0 < x.max() and len(x) == int(s.mask.sum())
+    np.testing.assert_allclose(y, np.maximum(x, 0.0), atol=1e-5)     # float32 normals
