@@ -161,7 +161,8 @@ def _series(plot: dict) -> list[tuple[str, list, list, dict]]:
 def plot_png(name: str, plot: dict) -> bytes:
     """A line plot from ``{"x": [...], "series": {label: [...] | {"x", "y"}}, "xlabel", "ylabel"}``.
 
-    Optional keys: ``title``, ``logx``, ``logy``, ``kind`` ("line" default, or "scatter"); a
+    Optional keys: ``title``, ``logx``, ``logy``, ``ylim`` ([low, high]), ``kind`` ("line" default,
+    or "scatter"); a
     series dict may set ``color``, ``marker``, ``markersize`` and ``linestyle``, and a label that
     starts with ``_`` is left out of the legend.
     """
@@ -182,6 +183,8 @@ def plot_png(name: str, plot: dict) -> bytes:
         ax.set_xscale("log")
     if plot.get("logy"):
         ax.set_yscale("log")
+    if plot.get("ylim"):
+        ax.set_ylim(*plot["ylim"])
     ax.tick_params(labelsize=9)
     ax.grid(alpha=0.3)
     if series:   # a label starting with "_" stays out of the legend (matplotlib's rule)

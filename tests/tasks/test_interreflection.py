@@ -111,3 +111,31 @@ def test_every_scored_scene_has_a_class_and_grooves_share_one_per_albedo():
         assert classes["ps_cap[albedo=0.9]"] == "concave cap, albedo 0.9"
     assert TASK.scene_class("room_white") != TASK.scene_class("room_black")
     assert TASK.scene_class("shadow_near") is None
+
+
+@pytest.mark.render
+def test_fig_1_21_zoom_renders_the_shadow_and_shows_its_reflex():
+    """The zoom renders the cast shadow on its own (96 px across -0.75 < x < -0.15, at least 256
+    spp at draft): inside the shadow the direct light is 0, the full transport is not (the reflex
+    from the lit plane and the bump), and the radiosity model predicts its level within 2x; the
+    local model predicts nothing there."""
+    from pbrbench.quality import DRAFT
+    from pbrbench.tasks._interreflection_figures import _bump_zoom, _cells
+
+    z = _bump_zoom(TASK.scenes.spec("cylinder_bump"), DRAFT, _cells(TASK, DRAFT))
+    (pt,) = [v for k, v in z.items() if k.startswith("path tracer (global)")]
+    x = np.array(pt["x"])
+    assert len(x) == 96 and x.min() < -0.7 and x.max() > -0.2
+    lo, hi = -0.48, -0.32          # inside the shadow, and inside the model's draft patches that it covers
+    inside = (x > lo) & (x < hi)
+
+    def at(name):
+        v = z[name]
+        xx = np.array(v["x"])
+        y = np.array([np.nan if u is None else u for u in v["y"]])
+        return y[(xx > lo) & (xx < hi)]
+    glob = np.array(pt["y"])[inside]
+    direct = at("path tracer, direct light only")
+    assert np.all(direct < 1e-6) and np.all(glob > 1e-3)
+    rad, loc = at("radiosity model"), at("local model")
+    assert 0.5 < np.mean(glob) / np.mean(rad) < 2.0 and np.all(loc < 1e-6)
