@@ -175,6 +175,38 @@ def plane(x, y, *, fx: float = 0.0, fy: float = 0.0, extent: float = 1.0):
     return z, np.full_like(z, fx), np.full_like(z, fy), mask
 
 
+def craters(x, y, *, seed: int = 0, count: int = 9, r_min: float = 0.1, r_max: float = 0.3,
+            depth: float = 0.3, rim: float = 0.35, extent: float = 1.0):
+    """A cratered relief (the chapter's Fig 1.23, the moon): ``count`` seeded craters of radius
+    ``R`` in ``[r_min, r_max]`` on a plane, each a bowl and a raised rim,
+
+    .. math:: h(r) = d R \left[ \rho\, e^{-((r - R) / w)^2} - e^{-(r / (0.6 R))^2} \right],
+              \quad w = 0.25 R,
+
+    (``d = depth``, ``rho = rim``: the rim's height over the bowl's depth), summed; gradients
+    analytic.  Centres uniform over ``|x|, |y| < 0.8 extent``."""
+    rng = np.random.default_rng(seed)
+    cx = rng.uniform(-0.8, 0.8, count) * extent
+    cy = rng.uniform(-0.8, 0.8, count) * extent
+    radii = rng.uniform(r_min, r_max, count)
+    z = np.zeros_like(x, dtype=float)
+    fx = np.zeros_like(z)
+    fy = np.zeros_like(z)
+    for x0, y0, R in zip(cx, cy, radii, strict=True):
+        dx, dy = x - x0, y - y0
+        r = np.hypot(dx, dy)
+        w, b = 0.25 * R, 0.6 * R
+        ring = np.exp(-((r - R) / w) ** 2)
+        bowl = np.exp(-(r / b) ** 2)
+        z += depth * R * (rim * ring - bowl)
+        # dh/dr / r, finite at r = 0 (the ring's term is ~exp(-16) there)
+        g = depth * R * (rim * ring * (-2.0 * (r - R) / (w * w)) / np.maximum(r, 1e-12) + bowl * 2.0 / (b * b))
+        fx += g * dx
+        fy += g * dy
+    mask = (np.abs(x) < extent) & (np.abs(y) < extent)
+    return z, fx, fy, mask
+
+
 SURFACES = {
     "sphere": sphere,
     "cup": cup,
@@ -184,6 +216,7 @@ SURFACES = {
     "groove": groove,
     "random_smooth": random_smooth,
     "plane": plane,
+    "craters": craters,
 }
 
 

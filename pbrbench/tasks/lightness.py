@@ -184,9 +184,12 @@ class LightnessTask(Task):
                     tw = twins[i]
                     tp = tuple(k + 1 for k, sh in enumerate(tw.shapes) if sh.material == "paper")
                     out.append(Job(self.name, tw.name, "area", (("paper_ids", tp),)))
+        out += [Job(self.name, s.name, "local", (("plot", "retexture"),)) for s in self.scenes.family(RETEXTURE)[:1]]
         return out
 
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        if job.param("plot") == "retexture":
+            return retexture_figures(job, gts[job.scene], self.library_spec(job.scene))
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
         base, mods = parse_condition(job.condition)
@@ -267,6 +270,42 @@ class LightnessTask(Task):
 
 
 CHAPTER_1D_FAMILY = "mondrian_grey"
+RETEXTURE = "retexture"     # Fig 1.22's scene family: one shape twice, plain and textured (a figure, no score)
+
+
+def retexture_figures(job: Job, gt, spec) -> JobResult:
+    """Fig 1.22 from the ``retexture`` render: the two copies (plain, textured), their shading
+    ``radiance / albedo`` (the same on both: the texture changes the albedo, not the shading),
+    and the shading of both along the middle row, in each copy's own x."""
+    from pbrbench.shading.surfaces import pixel_grid
+
+    res = JobResult(job)
+    img = np.asarray(gt["radiance"], float)
+    alb = np.asarray(gt["albedo"], float)
+    m = gt.mask & (alb.min(axis=-1) > 0)
+    shading = np.where(m[..., None], img / np.where(alb > 0, alb, 1.0), 0.0)
+    res.images["linear:Fig 1.22 one shape under one source, plain and textured: the render"] = display(img, 256)
+    res.images["linear:Fig 1.22 the shading, radiance / albedo: the same on both copies"] = display(shading, 256)
+    H, W = img.shape[:2]
+    ids = np.rint(np.asarray(gt["object_id"], float)).astype(int) if "object_id" in gt else None
+    if spec is None or ids is None or len(spec.shapes) < 2:
+        return res
+    x = pixel_grid(H, W, spec.camera.half_width)[0][0]
+    row = H // 2
+    series = {}
+    for k, (sh, col) in enumerate(zip(spec.shapes[:2], ("C0", "C1"), strict=True)):
+        on = m[row] & (ids[row] == k + 1)
+        xl = (x - sh.center[0])[on]
+        series[f"shading, {sh.name} copy"] = {"x": xl.tolist(), "y": grey(shading)[row][on].tolist(), "color": col,
+                                              "marker": "", "linestyle": "-" if k == 0 else "--"}
+        series[f"radiance, {sh.name} copy"] = {"x": xl.tolist(), "y": grey(img)[row][on].tolist(), "color": col,
+                                               "marker": "", "linestyle": ":"}
+    res.plots["Fig 1.22 shading and radiance along the middle row of each copy"] = {
+        "x": None, "series": series, "xlabel": "x within the copy", "ylabel": "grey value",
+        "title": "Fig 1.22: the texture changes the radiance (dotted), not the shading"}
+    return res
+
+
 FIG_1_11 = ("Fig 1.11 lightness in 1-D (Horn 1974) along a row of the grey Mondrian: the log image, its "
             "derivative, the derivative thresholded (paint edges kept, shading gradients dropped) and its "
             "integral, the log reflectance up to the brightest paper")

@@ -207,6 +207,7 @@ class SFSTask(Task):
                         out.append(Job(self.name, tw.name, "area", self._params(tw, tw_cases[k], k)))
         if NEAR_MATCH in quality.pick(self.families, self.short_families):
             out += self._near_jobs(quality)
+        out += [Job(self.name, s.name, "global", (("plot", "relief"),)) for s in self.scenes.family(RELIEF)[:1]]
         return out
 
     def _near_jobs(self, quality) -> list[Job]:
@@ -245,6 +246,8 @@ class SFSTask(Task):
         return out
 
     def run_job(self, job: Job, gts: dict, *, seed: int = 0, algorithms=(), quality=None) -> JobResult:
+        if job.param("plot") == "relief":
+            return relief_figures(job, gts[job.scene], self.library_spec(job.scene))
         algorithms = [a for a in algorithms if a.applies(job.condition)]
         gt = gts[job.scene]
         base, mods = parse_condition(job.condition)
@@ -325,6 +328,25 @@ class SFSTask(Task):
             np.arange(img.shape[1]) * px, prof, "x (world units from the left edge)", "height (offset removed)")
         res.scores = book.scores
         return res
+
+
+RELIEF = "craters"     # Fig 1.23's scene family: a cratered plain under a grazing and a high source (a figure)
+
+
+def relief_figures(job: Job, gt, spec) -> JobResult:
+    """Fig 1.23 from the ``craters`` render: the plain under each source of its light set, the
+    grazing one first (shading and cast shadows pick out every crater), the high one after
+    (the relief all but vanishes)."""
+    res = JobResult(job)
+    for k, light in enumerate(spec.light_set if spec is not None else ()):
+        d, _ = nominal_light(light, spec.camera)
+        elev = float(np.degrees(np.arcsin(np.clip(d[2], -1.0, 1.0))))
+        name = f"light{k:02d}.radiance"
+        if name in gt:
+            res.images[f"linear:Fig 1.23 craters, source at {elev:.0f} deg elevation"
+                       + (": shading and cast shadows pick out the relief" if elev < 30 else ": the relief all but vanishes")] = \
+                display(gt[name])
+    return res
 
 
 def cosine_law_plot(gt, image, light, irradiance: float, n_points: int = 1500) -> dict:

@@ -84,7 +84,7 @@ def test_lightness_ambient_jobs_at_draft_and_standard():
     assert cond == "local+ambient0.1" and cond in TASK.conditions
     for q in ("draft", "standard"):
         jobs = TASK.jobs(get_quality(q))
-        local = {(j.scene, j.params) for j in jobs if j.condition == "local"}
+        local = {(j.scene, j.params) for j in jobs if j.condition == "local" and j.param("plot") is None}
         ambient = {(j.scene, j.params) for j in jobs if j.condition == cond}
         assert ambient == local and any(s == "mondrian_shadow" for s, _ in ambient), q
 
@@ -179,3 +179,31 @@ def test_fig_1_11_integrates_the_thresholded_log_derivative():
     integral = np.array(s["integral: log reflectance (brightest = 0)"], float)
     assert np.allclose(integral[:20], 0.0) and np.allclose(integral[20:], thr[19])
     assert f["x"][0] == 3 and len(f["x"]) == 40
+
+
+@pytest.mark.render
+def test_fig_1_22_the_texture_changes_the_radiance_not_the_shading(cache_dir):
+    """The retexture scene at draft: along the middle row the two copies' shading agrees to the
+    render noise (the median difference well under a tenth of their radiance's; the pixels that
+    straddle a paper edge mix two albedos, and there radiance / albedo is not the shading), and
+    the plot job has no score."""
+    import numpy as np
+
+    from pbrbench.quality import DRAFT
+    from pbrbench.render.cache import RenderCache, ground_truth
+    from pbrbench.tasks.lightness import TASK
+
+    (job,) = [j for j in TASK.jobs(DRAFT) if j.param("plot") == "retexture"]
+    gt, _ = ground_truth(TASK.scenes.spec(job.scene), DRAFT, cache=RenderCache(cache_dir))
+    res = TASK.run_job(job, {job.scene: gt}, quality=DRAFT)
+    assert not res.scores and sum(n.startswith("linear:Fig 1.22") for n in res.images) == 2
+    (plot,) = [p for n, p in res.plots.items() if n.startswith("Fig 1.22")]
+    s = plot["series"]
+
+    def on(name, x):
+        return np.interp(x, s[name]["x"], s[name]["y"])
+
+    x = np.linspace(-0.4, 0.4, 41)
+    d_shading = np.median(np.abs(on("shading, plain copy", x) - on("shading, textured copy", x)))
+    d_radiance = np.median(np.abs(on("radiance, plain copy", x) - on("radiance, textured copy", x)))
+    assert d_shading < 0.1 * d_radiance

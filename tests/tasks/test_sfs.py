@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from pbrbench.tasks.base import Job
 from tests.fakes import (
@@ -85,3 +86,21 @@ def test_fig_1_3_the_cosine_law_plot_of_an_exact_lambertian_sphere_lies_on_the_l
     x, y = np.array(pts["x"]), np.array(pts["y"])
     assert x.min() < 0 < x.max() and len(x) == int(s.mask.sum())
     np.testing.assert_allclose(y, np.maximum(x, 0.0), atol=1e-5)     # float32 normals
+
+
+@pytest.mark.render
+def test_fig_1_23_a_grazing_source_picks_out_the_craters_and_a_high_one_hides_them(cache_dir):
+    import numpy as np
+
+    from pbrbench.quality import DRAFT
+    from pbrbench.render.cache import RenderCache, ground_truth
+    from pbrbench.tasks.sfs import TASK
+
+    (job,) = [j for j in TASK.jobs(DRAFT) if j.param("plot") == "relief"]
+    gt, _ = ground_truth(TASK.scenes.spec(job.scene), DRAFT, cache=RenderCache(cache_dir))
+    res = TASK.run_job(job, {job.scene: gt}, quality=DRAFT)
+    assert not res.scores
+    names = sorted(res.images)
+    assert [n.split(" deg")[0].split()[-1] for n in names] == ["15", "70"]
+    contrast = [float(np.std(res.images[n]) / np.mean(res.images[n])) for n in names]
+    assert contrast[0] > 3 * contrast[1]
