@@ -177,7 +177,7 @@ def plane(x, y, *, fx: float = 0.0, fy: float = 0.0, extent: float = 1.0):
 
 def craters(x, y, *, seed: int = 0, count: int = 9, r_min: float = 0.1, r_max: float = 0.3,
             depth: float = 0.3, rim: float = 0.35, extent: float = 1.0):
-    """A cratered relief (the chapter's Fig 1.23, the moon): ``count`` seeded craters of radius
+    r"""A cratered relief (the chapter's Fig 1.23, the moon): ``count`` seeded craters of radius
     ``R`` in ``[r_min, r_max]`` on a plane, each a bowl and a raised rim,
 
     .. math:: h(r) = d R \left[ \rho\, e^{-((r - R) / w)^2} - e^{-(r / (0.6 R))^2} \right],
