@@ -175,8 +175,9 @@ def specular_direction_figure(spec, gt, img):
     out = tonemap(img).astype(float) / 255.0
     if out.ndim == 2 or out.shape[-1] == 1:
         out = np.repeat(out.reshape(*out.shape[:2], 1), 3, axis=-1)
-    r = max(2, img.shape[0] // 24)
-    for di in range(-r, r + 1):
+    r = max(4, img.shape[0] // 16)
+    gap = max(2, r // 2)      # the cross's centre is left open: the highlight shows through it
+    for di in (*range(-r, -gap + 1), *range(gap, r + 1)):
         for ii, jj in ((i + di, j), (i, j + di)):
             if 0 <= ii < out.shape[0] and 0 <= jj < out.shape[1]:
                 out[ii, jj] = (1.0, 0.0, 0.0)
