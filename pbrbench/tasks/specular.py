@@ -113,7 +113,7 @@ class SpecularTask(Task):
             spec = self.library_spec(job.scene)
             fig = specular_direction_figure(spec, gt, img) if spec is not None else None
             if fig is not None:
-                res.images["Figs 1.1-1.2 a specularity lies along the specular direction: the rendered sphere, "
+                res.images["Figs 1.1-1.2 a specularity lies along the specular direction: the render, "
                            "the pixel whose normal bisects source and view marked (+)"] = fig
 
         def check_removed(o):
