@@ -12,6 +12,7 @@ import numpy as np
 from pbrbench.checks import check_int, check_number
 from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
+    _CHUNK,
     DOCS,
     PhotometricStereoResult,
     cofactors,
@@ -19,7 +20,6 @@ from pbrbench.infer.photometric_stereo._common import (
     measurements,
     prepare,
     reject_outliers,
-    weighted_fit,
 )
 
 __all__ = ["photometric_stereo_ikehata2012_sbl"]
@@ -27,11 +27,48 @@ __all__ = ["photometric_stereo_ikehata2012_sbl"]
 
 def _quad_inv(a, s):
     """``h_k = s_k^T A^{-1} s_k`` for packed symmetric 3x3 ``a`` (6, N) and lights ``s`` (K, 3)."""
-    c00, c01, c02, c11, c12, c22, det = cofactors(a)
+    *cof, det = cofactors(a)
     inv_det = np.divide(1.0, det, out=np.zeros_like(det), where=det > 0)
-    sx, sy, sz = s[:, 0:1], s[:, 1:2], s[:, 2:3]
-    return (c00 * sx * sx + c11 * sy * sy + c22 * sz * sz
-            + 2 * (c01 * sx * sy + c02 * sx * sz + c12 * sy * sz)) * inv_det
+    return _quad_from_cofactors(_pairs6(s), cof, inv_det)
+
+
+def _pairs6(s):
+    """(K, 6) rows ``(sx^2, sy^2, sz^2, 2 sx sy, 2 sx sz, 2 sy sz)`` of the lights ``s`` (K, 3)."""
+    return np.stack([s[:, 0] ** 2, s[:, 1] ** 2, s[:, 2] ** 2,
+                     2 * s[:, 0] * s[:, 1], 2 * s[:, 0] * s[:, 2], 2 * s[:, 1] * s[:, 2]], axis=1)
+
+
+def _quad_from_cofactors(q6, cof, inv_det):
+    """``s_k^T A^{-1} s_k`` from the cofactors ``(c00, c01, c02, c11, c12, c22)`` of ``A`` and
+    ``1 / det A`` (0 where singular): one (K, 6) x (6, N) product with ``q6 = _pairs6(s)``."""
+    c00, c01, c02, c11, c12, c22 = cof
+    return q6 @ (np.stack([c00, c11, c22, c01, c02, c12]) * inv_det)
+
+
+def _sbl_em(jsum, used, g, scale, lam, s, s7, n_iter):
+    """The EM iterations of the docstring on one block of pixels (pixels are independent);
+    ``g`` (3, N) is the start.  Each iteration forms the weighted normal equations ``A = sum_k
+    w_k S_k S_k^T`` and their cofactors once, for both the solve and ``h_k``."""
+    usedf = used.astype(float)
+    gamma = np.where(used, scale**2, 0.0)  # start: every measurement may be corrupted
+    q6 = _pairs6(s)
+    sT, s7T = s.T, s7.T
+    for _ in range(n_iter):
+        w = usedf / (gamma + lam)
+        a = s7T @ w
+        b0, b1, b2 = sT @ (w * jsum)
+        c00, c01, c02, c11, c12, c22, det = cofactors(a[:6])
+        ok = det > 1e-9 * ((a[0] + a[1] + a[2]) * (1.0 / 3.0)) ** 3     # as sym_solve
+        inv_ok = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+        g = np.where(ok, np.stack([(c00 * b0 + c01 * b1 + c02 * b2) * inv_ok, (c01 * b0 + c11 * b1 + c12 * b2) * inv_ok,
+                                   (c02 * b0 + c12 * b1 + c22 * b2) * inv_ok]), g)
+        r = jsum - s @ g
+        inv_pos = np.divide(1.0, det, out=np.zeros_like(det), where=det > 0)
+        h = _quad_from_cofactors(q6, (c00, c01, c02, c11, c12, c22), inv_pos)
+        sigma_kk = gamma - gamma * gamma * (w - w * w * h)
+        mu = gamma * w * r
+        gamma = np.where(used, mu * mu + np.maximum(sigma_kk, 0.0), 0.0)
+    return g
 
 
 @docstring(DOCS)
@@ -96,17 +133,10 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
     jsum, used, g = measurements(p)
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
     lam = (sig * scale) ** 2
-    usedf = used.astype(float)
-    gamma = np.where(used, scale**2, 0.0)  # start: every measurement may be corrupted
-    for _ in range(n_iter):
-        w = usedf / (gamma + lam)
-        g_new, ok_new, a, _ = weighted_fit(w, jsum, s, s7)
-        g = np.where(ok_new, g_new, g)
-        r = jsum - s @ g
-        h = _quad_inv(a[:6], s)
-        mu = gamma * w * r
-        sigma_kk = gamma - gamma**2 * (w - w**2 * h)
-        gamma = np.where(used, mu**2 + np.maximum(sigma_kk, 0.0), 0.0)
+    g = g.copy()
+    for start in range(0, g.shape[1], _CHUNK):   # pixel blocks: the temporaries stay in cache
+        sl = slice(start, start + _CHUNK)
+        g[:, sl] = _sbl_em(jsum[:, sl], used[:, sl], g[:, sl], scale[sl], lam[sl], s, s7, n_iter)
     r = np.abs(jsum - s @ g)
     free = used & (r > 1e-9 * scale)
     used = reject_outliers(used, r, free, scale, p.min_lights)

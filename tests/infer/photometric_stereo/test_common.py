@@ -51,3 +51,23 @@ def test_quad_inv_is_s_ainv_s():
     s = rng.standard_normal((5, 3))
     want = np.einsum("kj,jkn->kn", s, np.linalg.solve(full.transpose(2, 0, 1), s.T[None]).transpose(1, 2, 0))
     np.testing.assert_allclose(_quad_inv(a, s), want, rtol=1e-9)
+
+
+def test_sbl_em_in_pixel_blocks_is_independent_of_the_block_size(monkeypatch):
+    # the EM runs block by block (pixels are independent); a block boundary must change nothing,
+    # down to the last bit (a block of 7 pixels against one block of every pixel)
+    import pbrbench.infer.photometric_stereo.ikehata2012_sbl as sbl
+    from pbrbench.shading.lambert import blinn_phong_highlights, lambertian_images, ring_lights
+    from pbrbench.shading.surfaces import on_grid
+
+    s = on_grid("sphere", 40, half_width=1.05)
+    lights = ring_lights(8)
+    imgs = lambertian_images(s.normals, 0.6, lights, mask=s.mask) + blinn_phong_highlights(s.normals, lights, 200.0,
+                                                                                            mask=s.mask)
+    monkeypatch.setattr(sbl, "_CHUNK", 1 << 20)
+    whole = sbl.photometric_stereo_ikehata2012_sbl(imgs, lights, mask=s.mask, max_iter=30)
+    monkeypatch.setattr(sbl, "_CHUNK", 7)
+    blocks = sbl.photometric_stereo_ikehata2012_sbl(imgs, lights, mask=s.mask, max_iter=30)
+    assert whole.normals.tobytes() == blocks.normals.tobytes()
+    assert whole.albedo.tobytes() == blocks.albedo.tobytes()
+    assert np.array_equal(whole.n_used, blocks.n_used)
