@@ -15,12 +15,18 @@ from pbrbench.infer._docstring import docstring
 from pbrbench.infer.photometric_stereo._common import (
     DOCS,
     PhotometricStereoResult,
+    accumulate,
     least_squares,
     measurements,
     prepare,
+    reject_outliers,
+    sym_solve,
 )
 
 __all__ = ["photometric_stereo_wu2010"]
+
+VERSION = "2"  # the low-rank recovery proposes the errors, the Lambertian fit with the known lights confirms them
+REFITS = 5      # rounds of fit and outlier check at most
 
 
 def _svt(X, tau):
@@ -52,11 +58,19 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
     by the inexact augmented Lagrange multiplier method (Lin, Chen & Ma 2010): singular value
     thresholding for ``A``, soft thresholding for ``E`` on ``\Omega`` (free, i.e. filled in,
     outside it).  Measurements flagged as errors (``|E|`` above 5 robust standard deviations of
-    the entries of ``E``, and above ``10^{-3}`` of the pixel's brightest) are then dropped
-    (unless fewer than 3 would remain) and each pixel's ``g = \rho N`` is the least-squares fit on the rest, as
-    for :func:`~pbrbench.infer.photometric_stereo.woodham1980.photometric_stereo_woodham1980`
-    (the low-rank matrix decides which measurements to trust; the known lights and the data
-    give the normal).
+    the entries of ``E``, and above ``10^{-3}`` of the pixel's brightest) are left out (unless
+    fewer than 3 would remain) of a first least-squares fit of each pixel's ``g = \rho N`` with
+    the known lights.  The flags are proposals: with few images (``K`` not much larger than the
+    rank 3) the nuclear norm can prefer a different low-rank matrix and a dense ``E`` (on a
+    rendered sphere under 12 distant lights it flagged 30 % of the clean measurements and left
+    20 % of the pixels without a solvable set).  So, as for the sparse-regression methods, a
+    measurement is finally dropped only where it is an outlier of that fit, its residual above 5
+    robust standard deviations of the trusted measurements' residuals (over the pixels with more
+    than 3 of them; ``reject_outliers``), and ``g`` is the
+    least-squares fit on the rest, as for
+    :func:`~pbrbench.infer.photometric_stereo.woodham1980.photometric_stereo_woodham1980` (the
+    low-rank matrix decides which measurements to suspect; the known lights and the data decide
+    which are errors and give the normal).
 
     Parameters
     ----------
@@ -88,7 +102,7 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
     p = prepare(images, lights, mask, intensities, shadow_threshold, saturation, min_lights)
     n_iter = check_int(max_iter, "max_iter", 1)
     tol = check_number(tol, "tol", lo=0.0, lo_open=True)
-    jsum, used, _ = measurements(p)
+    jsum, used, g_all = measurements(p)
     K, N = jsum.shape
     lam = 1.0 / np.sqrt(max(K, N)) if sparsity is None else check_number(sparsity, "sparsity", lo=0.0, lo_open=True)
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
@@ -115,6 +129,24 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
         ae = np.abs(E[used])
         sig = 1.4826 * float(np.median(ae)) if ae.size else 0.0
         trusted = used & (np.abs(E) <= max(5.0 * sig, 1e-3))
-        few = trusted.sum(axis=0) < 3  # keep a pixel solvable: fall back to its used lights
-        used = np.where(few[None, :], used, trusted)
+        # a pixel left with 3 trusted measurements (interpolated exactly: nothing to check the
+        # others against) or fewer starts from all its used ones
+        few = trusted.sum(axis=0) <= 3
+        trusted = np.where(few[None, :], used, trusted)
+        # the fit on the trusted measurements (all used ones where it is ill-conditioned), then
+        # the outliers of that fit among every used measurement; refitted on the inliers until
+        # the set settles (a fit on a few trusted lights extrapolates the others with more error)
+        for _ in range(REFITS):
+            amat, _, bsum, _, _, _ = accumulate(p, used_in=trusted)
+            g_t, ok_t = sym_solve(amat[:6], bsum)
+            g = np.where(ok_t, g_t, g_all)
+            r = np.abs(jsum - p.s @ g)
+            # the noise from the inliers of the pixels the fit over-determines (three are
+            # interpolated exactly), so that the errors the recovery found do not inflate it
+            over = trusted & (trusted.sum(axis=0) > 3)[None, :]
+            new = reject_outliers(used, r, over, scale, p.min_lights)
+            if np.array_equal(new, trusted):
+                break
+            trusted = new
+        used = trusted
     return least_squares(p, used_in=used)

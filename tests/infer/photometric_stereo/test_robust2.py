@@ -7,6 +7,7 @@ from pbrbench.infer.photometric_stereo import (
     METHODS,
     photometric_stereo_ikehata2012_l1,
     photometric_stereo_ikehata2012_sbl,
+    photometric_stereo_woodham1980,
     photometric_stereo_wu2010,
 )
 from pbrbench.shading.lambert import lambertian_images, ring_lights
@@ -87,3 +88,22 @@ def test_coplanar_lights_refused(sphere, fn):
     flat = np.tile([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.7, 0.7, 0.0]], (4, 1))
     with pytest.raises(ValueError, match="coplanar|degenerate"):
         fn(imgs, flat, mask=s.mask)
+
+
+def test_low_rank_flags_are_checked_against_the_lambertian_fit():
+    # failure mode of the low-rank recovery alone: on clean Lambertian images with a little noise
+    # and few lights (12, rank 3), the nuclear norm prefers another low-rank matrix and a dense E;
+    # taken as errors, its flags dropped 30 % of the clean measurements of a rendered sphere and
+    # left 20 % of its pixels unsolved.  The Lambertian fit with the known lights must overrule
+    # them: every pixel solved, and the normals as good as least squares where it holds
+    s = on_grid("sphere", 64, half_width=1.05)
+    lights = ring_lights(12)
+    rng = np.random.default_rng(5)
+    imgs = lambertian_images(s.normals, 0.7, lights, mask=s.mask)
+    imgs = np.where(imgs > 0, imgs * (1 + 0.01 * rng.standard_normal(imgs.shape)), 0.0)
+    ls = photometric_stereo_woodham1980(imgs, lights, mask=s.mask)
+    r = photometric_stereo_wu2010(imgs, lights, mask=s.mask)
+    assert r.valid[s.mask].mean() > 0.99
+    e_ls = ang(ls.normals[s.mask & ls.valid], s.normals[s.mask & ls.valid]).mean()
+    e_wu = ang(r.normals[s.mask & r.valid], s.normals[s.mask & r.valid]).mean()
+    assert e_wu < 1.25 * e_ls
