@@ -136,3 +136,26 @@ def test_screening_fit_has_the_pair_error_of_the_least_squares():
             ref = pair_error([_mn_fit(m, R, deg, black, 1 / 255, False) for m in moms])
             # (the screen allows 1e-4: an order is skipped only if its error exceeds the bound by that)
             assert pair_error(_mn_fit_free(moms, R, deg, black)) == pytest.approx(ref, rel=1e-5)
+
+
+def test_stated_ratios_are_kept_unless_re_estimating_them_halves_the_pair_error():
+    # exact stated times: the re-estimated ratios lower the pair error only by absorbing the
+    # polynomial's misfit, so "auto" (the default) returns the stated times; with times 8 % off
+    # (the ratio test above) it re-estimates them, and estimate_ratios=True always does
+    L = scene(seed=1)
+    br = Camera("film", bit_depth=8).capture(L, TIMES, seed=2)
+    auto = calibrate_mitsunaga1999(br.images, br.exposure_times, degree=5)
+    np.testing.assert_allclose(auto.exposure_times, br.exposure_times, rtol=1e-12)
+    forced = calibrate_mitsunaga1999(br.images, br.exposure_times, degree=5, estimate_ratios=True)
+    assert np.abs(np.log(forced.exposure_times / br.exposure_times)).max() > 1e-6
+    rough = Camera("polynomial", bit_depth=12, exposure_error=0.08).capture(L, TIMES, seed=5)
+    est = calibrate_mitsunaga1999(rough.images, rough.exposure_times, degree=3)
+    assert np.abs(np.log(est.exposure_times / rough.exposure_times)).max() > 0.01
+
+
+@pytest.mark.parametrize("kwargs, match", [(dict(estimate_ratios="sometimes"), "estimate_ratios"),
+                                           (dict(ratio_gain=0.0), "ratio_gain"), (dict(ratio_gain=1.5), "ratio_gain")])
+def test_ratio_option_errors(kwargs, match):
+    br = Camera("gamma").capture(scene(8), [0.25, 0.5, 1.0])
+    with pytest.raises(ValueError, match=match):
+        calibrate_mitsunaga1999(br.images, br.exposure_times, degree=2, **kwargs)
