@@ -126,6 +126,15 @@ def error_map_png(name: str, data, *, label: str | None = None) -> bytes:
     return buf.getvalue()
 
 
+def wrap_title(title: str, width_in: float, fontsize: float = 11.0) -> str:
+    """``title`` broken into lines that fit a figure ``width_in`` inches wide at ``fontsize``
+    points (about 0.55 em per character); a long title is otherwise cut at both edges."""
+    import textwrap
+
+    per_line = max(20, int(width_in * 72.0 / (0.55 * fontsize)))
+    return "\n".join(textwrap.wrap(title, per_line)) or title
+
+
 def _figure(size):
     """A matplotlib Figure without pyplot (no global state, cheaper)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -178,7 +187,7 @@ def plot_png(name: str, plot: dict) -> bytes:
                     color=style.get("color"))
     ax.set_xlabel(str(plot.get("xlabel", "")), fontsize=10)
     ax.set_ylabel(str(plot.get("ylabel", "")), fontsize=10)
-    ax.set_title(str(plot.get("title", name)), fontsize=11)
+    ax.set_title(wrap_title(str(plot.get("title", name)), PLOT_SIZE[0]), fontsize=11)
     if plot.get("logx"):
         ax.set_xscale("log")
     if plot.get("logy"):
