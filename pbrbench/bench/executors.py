@@ -176,15 +176,19 @@ class PoolExecutor:
         try:
             while self._pending:
                 finished, self._pending = wait(self._pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
+                broken = False
+                for fut in finished:    # every result that arrived is kept, whatever the set's order
                     try:
                         result = fut.result()
                     except BrokenProcessPool:
-                        raise UserError(f"--executor pool: a worker process died ({done} of {total} tasks "
-                                        "finished and kept; killed, out of memory or a crash in a library); "
-                                        "`pbrbench run --resume RUN` reruns only the missing jobs") from None
+                        broken = True
+                        continue
                     done += 1
                     yield cloudpickle.loads(result)
+                if broken:
+                    raise UserError(f"--executor pool: a worker process died ({done} of {total} tasks "
+                                    "finished and kept; killed, out of memory or a crash in a library); "
+                                    "`pbrbench run --resume RUN` reruns only the missing jobs")
         finally:
             if self._pending:     # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
                 self._kill()

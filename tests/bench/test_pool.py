@@ -87,3 +87,37 @@ def test_jobs_with_inverse_rendering_are_ranked_first():
     assert _expected_cost(job, [plain, scene], DRAFT) == 1
     off = Algorithm("inv", "photometric_stereo", _solve, interface="scene", conditions=("local",))
     assert _expected_cost(job, [plain, off], DRAFT) == 0
+
+
+def test_every_result_that_arrived_with_a_death_is_kept():
+    # the results that came back in the same wait() as a dead worker's future are yielded before
+    # the error, whatever order the set of finished futures has (it once lost one of them: the
+    # result of the task just before the death, intermittently, under load)
+    from concurrent.futures import Future
+    from concurrent.futures.process import BrokenProcessPool
+
+    import cloudpickle
+
+    futures = []
+
+    class _Pool:
+        def submit(self, fn, payload):
+            f = Future()
+            i = len(futures)
+            if i == 7:
+                f.set_exception(BrokenProcessPool("a child process terminated abruptly"))
+            else:
+                f.set_result(cloudpickle.dumps(i))
+            futures.append(f)
+            return f
+
+        def shutdown(self, **kw):
+            pass
+
+    ex = object.__new__(PoolExecutor)
+    ex.workers, ex._pool, ex._pending = 1, _Pool(), set()
+    got = []
+    with pytest.raises(UserError, match=r"a worker process died \(20 of 21 tasks finished and kept"):
+        for v in ex.imap(_die_on, [(i, -1) for i in range(21)]):
+            got.append(v)
+    assert sorted(got) == [i for i in range(21) if i != 7]
