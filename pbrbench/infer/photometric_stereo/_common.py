@@ -114,13 +114,14 @@ def cofactors(a):
     return c00, c01, c02, c11, c12, c22, det
 
 
-def sym_solve(a, b):
+def sym_solve(a, b, cof=None):
     """Solve batched symmetric 3x3 systems ``A x = b`` by cofactors (pixels along the last axis).
 
-    ``a``: (6, N) packed as (xx, yy, zz, xy, xz, yz); ``b``: (3, N).
+    ``a``: (6, N) packed as (xx, yy, zz, xy, xz, yz); ``b``: (3, N); ``cof``: ``cofactors(a)``
+    when the caller has them already.
     Returns ``(x, ok)``: (3, N) solutions and a flag for well-conditioned systems (others 0).
     """
-    c00, c01, c02, c11, c12, c22, det = cofactors(a)
+    c00, c01, c02, c11, c12, c22, det = cofactors(a) if cof is None else cof
     tr = a[0] + a[1] + a[2]
     ok = det > 1e-9 * (tr * (1.0 / 3.0)) ** 3
     inv_det = np.divide(1.0, det, out=np.zeros_like(det), where=ok)

@@ -20,16 +20,10 @@ from pbrbench.infer.photometric_stereo._common import (
     measurements,
     prepare,
     reject_outliers,
+    sym_solve,
 )
 
 __all__ = ["photometric_stereo_ikehata2012_sbl"]
-
-
-def _quad_inv(a, s):
-    """``h_k = s_k^T A^{-1} s_k`` for packed symmetric 3x3 ``a`` (6, N) and lights ``s`` (K, 3)."""
-    *cof, det = cofactors(a)
-    inv_det = np.divide(1.0, det, out=np.zeros_like(det), where=det > 0)
-    return _quad_from_cofactors(_pairs6(s), cof, inv_det)
 
 
 def _pairs6(s):
@@ -56,15 +50,12 @@ def _sbl_em(jsum, used, g, scale, lam, s, s7, n_iter):
     for _ in range(n_iter):
         w = usedf / (gamma + lam)
         a = s7T @ w
-        b0, b1, b2 = sT @ (w * jsum)
-        c00, c01, c02, c11, c12, c22, det = cofactors(a[:6])
-        ok = det > 1e-9 * ((a[0] + a[1] + a[2]) * (1.0 / 3.0)) ** 3     # as sym_solve
-        inv_ok = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
-        g = np.where(ok, np.stack([(c00 * b0 + c01 * b1 + c02 * b2) * inv_ok, (c01 * b0 + c11 * b1 + c12 * b2) * inv_ok,
-                                   (c02 * b0 + c12 * b1 + c22 * b2) * inv_ok]), g)
+        *cof, det = cofs = cofactors(a[:6])
+        g_new, ok = sym_solve(a[:6], sT @ (w * jsum), cofs)
+        g = np.where(ok, g_new, g)
         r = jsum - s @ g
         inv_pos = np.divide(1.0, det, out=np.zeros_like(det), where=det > 0)
-        h = _quad_from_cofactors(q6, (c00, c01, c02, c11, c12, c22), inv_pos)
+        h = _quad_from_cofactors(q6, cof, inv_pos)
         sigma_kk = gamma - gamma * gamma * (w - w * w * h)
         mu = gamma * w * r
         gamma = np.where(used, mu * mu + np.maximum(sigma_kk, 0.0), 0.0)

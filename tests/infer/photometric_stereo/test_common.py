@@ -4,7 +4,7 @@ bit-identical to the inline cofactor solve the methods had before (random, ill-c
 import numpy as np
 
 from pbrbench.infer.photometric_stereo._common import cofactors, sym_solve
-from pbrbench.infer.photometric_stereo.ikehata2012_sbl import _quad_inv
+from pbrbench.infer.photometric_stereo.ikehata2012_sbl import _pairs6, _quad_from_cofactors
 
 
 def _inline_solve(a, b):   # the solve as it was written out in _common before the move
@@ -41,6 +41,11 @@ def test_sym_solve_is_bit_identical_to_the_inline_solve():
 def _full(a):
     axx, ayy, azz, axy, axz, ayz = a
     return np.array([[axx, axy, axz], [axy, ayy, ayz], [axz, ayz, azz]])
+
+
+def _quad_inv(a, s):   # h_k = s_k^T A^-1 s_k as the SBL iteration forms it from the cofactors
+    *cof, det = cofactors(a)
+    return _quad_from_cofactors(_pairs6(s), cof, np.divide(1.0, det, out=np.zeros_like(det), where=det > 0))
 
 
 def test_quad_inv_is_s_ainv_s():
