@@ -369,10 +369,10 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
                 best = mode
         return best
 
-    best = search(False)
-    if estimate_ratios is True or (estimate_ratios == "auto" and K >= 3):
+    best = search(estimate_ratios is True)
+    if estimate_ratios == "auto" and K >= 3:    # with 2 exposures there is no ratio to re-estimate
         free = search(True)
-        if estimate_ratios is True or (free[2] < ratio_gain * best[2] and free[3] <= best[3]):
+        if free[2] < ratio_gain * best[2] and free[3] <= best[3]:
             best = free
     coefs, lnR = best[0], best[1]
     M = np.arange(levels) / top
