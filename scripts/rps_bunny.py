@@ -1,6 +1,6 @@
 """Robust photometric stereo on the rendered bunny sets of Matsushita's RobustPhotometricStereo
-(https://github.com/yasumat/RobustPhotometricStereo, ``data/bunny``), beside the figures its
-README and issue tracker report.
+(https://github.com/yasumat/RobustPhotometricStereo, ``data/bunny``); docs/peers.md sets the
+figures beside that repository's.
 
     python scripts/rps_bunny.py DATA_DIR [--methods woodham1980 ikehata2012_l1 ...]
 
