@@ -10,7 +10,8 @@ from pbrbench.scene import spec as S
 from pbrbench.scene.geometry import camera_rotation, light_vectors, nominal_light
 from pbrbench.tasks.base import Job, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, normals_display
-from pbrbench.tasks.common.inputs import add_noise, job_rng
+from pbrbench.render.groundtruth import GroundTruth
+from pbrbench.tasks.common.inputs import add_noise, job_rng, visible_surface
 from pbrbench.tasks.common.scenes import sweep_value
 
 
@@ -82,3 +83,22 @@ def test_display_helpers_shrink_and_keep_nan():
     n = normals_display(np.dstack([np.zeros((4, 4)), np.zeros((4, 4)), np.ones((4, 4))]), m)
     assert np.allclose(n[0, 0], [0.5, 0.5, 1.0]) and np.allclose(n[3, 3], 0)
 
+
+
+def test_the_visible_surface_leaves_out_pixels_whose_corner_touches_another_object():
+    # a ceiling (id 2) with an emitter (id 0) in its lower left: the pixel diagonal to the
+    # emitter's corner has four ceiling neighbours but its square touches the emitter
+    obj = np.full((8, 8), 2)
+    obj[4:, :4] = 0
+    gt = GroundTruth({"object_id": obj.astype(np.float32), "coverage": np.ones((8, 8), np.float32),
+                      "mask": np.ones((8, 8), np.float32)}, {})
+    dom = visible_surface(gt)
+    assert not dom[3, 4]                  # diagonal to the emitter's corner (4, 3)
+    assert not dom[3, 3] and not dom[4, 4]
+    assert dom[2, 2] and dom[2, 5] and dom[6, 6]
+    assert not dom[5, 1]                  # the emitter itself
+    assert dom.sum() == 64 - 16 - 9       # the emitter and the ring of 9 around its corner
+    cov = np.ones((8, 8), np.float32)
+    cov[0, 7] = 0.5                       # a partly covered pixel is out, its neighbours stay in
+    gt2 = GroundTruth({"object_id": obj.astype(np.float32), "coverage": cov, "mask": cov}, {})
+    assert not visible_surface(gt2)[0, 7] and visible_surface(gt2)[1, 6]
