@@ -74,8 +74,8 @@ def visible_surface(gt) -> np.ndarray:
     its own square, and an object whose corner cuts that square shows its id at a diagonal
     neighbour only.  In the rooms at draft a ceiling pixel diagonal to the emitter had its corner
     in the source: one sample in 15 saw the emitter's radiance, 7.5 against 0.75 for the brightest
-    surface pixel, and the paired ``global - local`` cost of the black room moved by 20 SE
-    between render seeds.  The ground truth's ``mask`` adds that the footprint-averaged shape index
+    surface pixel, and the black room's scores moved far beyond their standard errors between
+    render seeds.  The ground truth's ``mask`` adds that the footprint-averaged shape index
     equal the point-sampled one, which leaves out whole objects of some scenes (in the rooms the
     back wall and the boxes); the radiance of a pixel inside one object's outline is a clean
     comparison whatever that test says."""
