@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 
 from pbrbench.quality import get_quality
+from pbrbench.render.groundtruth import GroundTruth
 from pbrbench.scene import spec as S
 from pbrbench.scene.geometry import camera_rotation, light_vectors, nominal_light
 from pbrbench.tasks.base import Job, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, normals_display
-from pbrbench.render.groundtruth import GroundTruth
 from pbrbench.tasks.common.inputs import add_noise, job_rng, visible_surface
 from pbrbench.tasks.common.scenes import sweep_value
 
