@@ -22,7 +22,7 @@ from pbrbench.infer.photometric_stereo._common import (
 
 __all__ = ["photometric_stereo_ikehata2012_l1"]
 
-VERSION = "2"  # outlier rejection never leaves fewer than min_lights inliers
+VERSION = "3"  # outlier rejection never leaves fewer than min_lights inliers, nor inliers that determine no normal
 
 
 @docstring(DOCS)
@@ -91,7 +91,7 @@ def photometric_stereo_ikehata2012_l1(images, lights, *, mask=None, intensities=
     # all pixels from the residuals the L1 fit did not interpolate exactly (an L1 fit passes
     # through >= 3 measurements, whose zero residuals say nothing about the noise).
     free = used & (r > 1e3 * delta)
-    used = reject_outliers(used, r, free, scale, p.min_lights)
+    used = reject_outliers(used, r, free, scale, p.min_lights, p.s7)
     del r, wl1, wsum, free
     # least-squares polish on the inliers (Gaussian-efficient, exact when inliers are exact)
     return least_squares(p, used_in=used, fallback=g)

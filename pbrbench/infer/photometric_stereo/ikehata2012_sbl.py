@@ -25,6 +25,8 @@ from pbrbench.infer.photometric_stereo._common import (
 
 __all__ = ["photometric_stereo_ikehata2012_sbl"]
 
+VERSION = "2"  # the final rejection never leaves inliers that determine no normal (three coplanar sources)
+
 
 def _pairs6(s):
     """(K, 6) rows ``(sx^2, sy^2, sz^2, 2 sx sy, 2 sx sz, 2 sy sz)`` of the lights ``s`` (K, 3)."""
@@ -130,5 +132,5 @@ def photometric_stereo_ikehata2012_sbl(images, lights, *, mask=None, intensities
         g[:, sl] = _sbl_em(jsum[:, sl], used[:, sl], g[:, sl], scale[sl], lam[sl], s, s7, n_iter)
     r = np.abs(jsum - s @ g)
     free = used & (r > 1e-9 * scale)
-    used = reject_outliers(used, r, free, scale, p.min_lights)
+    used = reject_outliers(used, r, free, scale, p.min_lights, p.s7)
     return least_squares(p, used_in=used, fallback=g)

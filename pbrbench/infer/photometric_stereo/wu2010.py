@@ -25,7 +25,7 @@ from pbrbench.infer.photometric_stereo._common import (
 
 __all__ = ["photometric_stereo_wu2010"]
 
-VERSION = "3"  # the low-rank recovery on the raw measurements proposes the errors, the Lambertian fit confirms them
+VERSION = "4"  # the low-rank recovery on the raw measurements proposes the errors, the Lambertian fit confirms them; a rejection never leaves inliers that determine no normal
 REFITS = 5      # rounds of fit and outlier check at most
 
 
@@ -148,7 +148,7 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
             # the noise from the inliers of the pixels the fit over-determines (three are
             # interpolated exactly), so that the errors the recovery found do not inflate it
             over = trusted & (trusted.sum(axis=0) > 3)[None, :]
-            new = reject_outliers(used, r, over, scale, p.min_lights)
+            new = reject_outliers(used, r, over, scale, p.min_lights, p.s7)
             if np.array_equal(new, trusted):
                 break
             trusted = new
