@@ -33,7 +33,22 @@ def main(argv=None) -> int:
     from pbrbench.render.cache import RenderCache
 
     draft = Q.PRESETS["draft"]
-    more = dataclasses.replace(draft, name=f"draft{a.factor:g}x", spp_scale=draft.spp_scale * a.factor,
+
+    @dataclasses.dataclass(frozen=True)
+    class Times(Q.Quality):
+        """``factor`` times the samples draft gives each pass (draft's floors, 2 per sample group,
+        put most draft passes at 8 spp; scaling ``spp_scale`` instead gave them 12, 1.5x)."""
+        factor: float = 1.0
+
+        def spp(self, spp: int) -> int:
+            return int(round(self.factor * draft.spp(spp)))
+
+        def render_key(self) -> dict:
+            return {**super().render_key(), "spp_factor_of_draft": self.factor}
+
+    more = Times(**{f.name: getattr(draft, f.name) for f in dataclasses.fields(draft)})
+    more = dataclasses.replace(more, name=f"draft{a.factor:g}x", factor=float(a.factor),
+                               spp_scale=draft.spp_scale * a.factor,
                                description=f"draft resolution, {a.factor:g}x draft's samples (scripts/bias_check.py)")
     Q.PRESETS[more.name] = more      # the render layer looks profiles up by name
     tasks = load_tasks(sorted({t for t, _ in pairs}))
