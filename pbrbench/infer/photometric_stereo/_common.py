@@ -368,11 +368,8 @@ def reject_outliers(used, r, free, scale, min_lights: int, s7=None):
     ps_cup direct, 6 lights).
 
     ``s7`` (K, 7): the lights' packed outer products (:func:`outer6`).  Given, a pixel whose
-    remaining lights do not determine a normal (their normal matrix fails :func:`sym_solve`'s
-    conditioning test: three sources in one plane through the surface point) also keeps all its
-    used lights.  Without it such a pixel was left unsolved: under sphere_5lights' lights, four
-    of which lie in two vertical planes with the fifth overhead, the sparse Bayesian fit's
-    rejection left 178 of 2,742 draft pixels on a coplanar triple, each scored as 90 degrees.
+    remaining lights determine no normal (three coplanar sources: :func:`sym_solve`'s test fails)
+    also keeps all its used lights, instead of being left unsolved (docs/peers.md).
     """
     sigma = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
     inl = used & (r <= np.maximum(5.0 * sigma, 1e-6 * scale))
