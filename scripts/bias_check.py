@@ -46,10 +46,9 @@ def main(argv=None) -> int:
         def render_key(self) -> dict:
             return {**super().render_key(), "spp_factor_of_draft": self.factor}
 
-    more = Times(**{f.name: getattr(draft, f.name) for f in dataclasses.fields(draft)})
-    more = dataclasses.replace(more, name=f"draft{a.factor:g}x", factor=float(a.factor),
-                               spp_scale=draft.spp_scale * a.factor,
-                               description=f"draft resolution, {a.factor:g}x draft's samples (scripts/bias_check.py)")
+    more = Times(**{**{f.name: getattr(draft, f.name) for f in dataclasses.fields(draft)},
+                    "name": f"draft{a.factor:g}x", "factor": float(a.factor),
+                    "description": f"draft resolution, {a.factor:g}x draft's samples (scripts/bias_check.py)"})
     Q.PRESETS[more.name] = more      # the render layer looks profiles up by name
     tasks = load_tasks(sorted({t for t, _ in pairs}))
     reg = builtin_registry(tasks)

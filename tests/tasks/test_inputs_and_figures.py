@@ -84,7 +84,6 @@ def test_display_helpers_shrink_and_keep_nan():
     assert np.allclose(n[0, 0], [0.5, 0.5, 1.0]) and np.allclose(n[3, 3], 0)
 
 
-
 def test_the_visible_surface_leaves_out_pixels_whose_corner_touches_another_object():
     # a ceiling (id 2) with an emitter (id 0) in its lower left: the pixel diagonal to the
     # emitter's corner has four ceiling neighbours but its square touches the emitter

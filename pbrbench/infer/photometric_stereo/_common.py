@@ -30,7 +30,6 @@ __all__ = [
     "outer6",
     "prepare",
     "reject_outliers",
-    "well_posed",
     "scatter",
     "sym_solve",
     "weighted_fit",
@@ -357,7 +356,7 @@ def least_squares(p: Problem, used_in=None, fallback=None) -> PhotometricStereoR
     return finish(p, g, ok, amat, bmat, q)
 
 
-def reject_outliers(used, r, free, scale, min_lights: int, s7=None):
+def reject_outliers(used, r, free, scale, min_lights: int, s7):
     """The used measurements less the outliers: residual ``r`` > 5 robust standard deviations.
 
     The noise is ``sigma = 1.4826 median(r)`` over the ``free`` measurements of the whole image
@@ -367,19 +366,18 @@ def reject_outliers(used, r, free, scale, min_lights: int, s7=None):
     the rejection would leave 1-2 lights on every pixel whose residual is a little larger:
     ps_cup direct, 6 lights).
 
-    ``s7`` (K, 7): the lights' packed outer products (:func:`outer6`).  Given, a pixel whose
+    ``s7`` (K, 7): the lights' packed outer products (:func:`outer6`).  A pixel whose
     remaining lights determine no normal (three coplanar sources: :func:`sym_solve`'s test fails)
     also keeps all its used lights, instead of being left unsolved (docs/peers.md).
     """
     sigma = 1.4826 * float(np.median(r[free])) if free.any() else 0.0
     inl = used & (r <= np.maximum(5.0 * sigma, 1e-6 * scale))
     few = inl.sum(axis=0) < min_lights
-    if s7 is not None:
-        few |= ~well_posed(np.asarray(s7, float)[:, :6].T @ inl)
+    few |= ~_well_posed(s7[:, :6].T @ inl)
     return np.where(few[None, :], used, inl)
 
 
-def well_posed(a) -> np.ndarray:
+def _well_posed(a) -> np.ndarray:
     """(N,) bool: the packed normal matrices ``a`` (6, N) pass :func:`sym_solve`'s conditioning test."""
     return sym_solve(a, np.zeros((3, a.shape[1])))[1]
 
