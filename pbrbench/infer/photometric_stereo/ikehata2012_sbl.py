@@ -49,8 +49,11 @@ def _sbl_em(jsum, used, g, scale, lam, s, s7, n_iter):
     gamma = np.where(used, scale**2, 0.0)  # start: every measurement may be corrupted
     q6 = _pairs6(s)
     sT, s7T = s.T, s7.T
+    zero = np.zeros_like(gamma)
     for _ in range(n_iter):
-        w = usedf / (gamma + lam)
+        # only used measurements carry a weight: at a pixel dark in every image, gamma and lam
+        # underflow to 0 and a plain division would give 0 / 0 (a NaN and a RuntimeWarning)
+        w = np.divide(usedf, gamma + lam, out=zero.copy(), where=used)
         a = s7T @ w
         *cof, det = cofs = cofactors(a[:6])
         g_new, ok = sym_solve(a[:6], sT @ (w * jsum), cofs)

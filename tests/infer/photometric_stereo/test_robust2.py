@@ -126,3 +126,27 @@ def test_a_rejection_that_leaves_three_coplanar_lights_keeps_the_pixel_solved(fn
     r = fn(imgs, lights, mask=m)
     assert r.valid[m].all()
     assert ang(r.normals[m], s.normals[m]).mean() < 1.1 * ang(ls.normals[m], s.normals[m]).mean()
+
+
+@pytest.mark.parametrize("fn", (photometric_stereo_ikehata2012_sbl, photometric_stereo_wu2010,
+                                 photometric_stereo_ikehata2012_l1))
+def test_a_pixel_dark_in_every_image_warns_nothing_and_leaves_the_rest_unchanged(sphere, fn):
+    # real photographs have pixels inside the mask that are 0 in every image (8-bit, deep
+    # shadow): the method must flag that pixel unsolved without a NaN or a RuntimeWarning, and
+    # the other pixels must not move
+    import warnings
+
+    s, lights, imgs, m = sphere
+    dark = imgs.copy()
+    i, j = np.argwhere(m)[len(np.argwhere(m)) // 2]
+    dark[:, i, j] = 0.0
+    ref = fn(imgs, lights, mask=s.mask)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        r = fn(dark, lights, mask=s.mask)
+    assert not r.valid[i, j]
+    assert np.isfinite(r.normals).all() and np.isfinite(r.albedo).all()
+    keep = s.mask.copy()
+    keep[i, j] = False
+    np.testing.assert_array_equal(r.normals[keep], ref.normals[keep])
+    np.testing.assert_array_equal(r.valid[keep], ref.valid[keep])
