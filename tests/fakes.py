@@ -31,6 +31,14 @@ FIVE = np.array([[0, 0, 1], [0.6, 0, 0.8], [-0.6, 0, 0.8], [0, 0.6, 0.8], [0, -0
 class FakeSpec:
     name: str
 
+    @property
+    def render(self):
+        """The render settings the runner reads (``spp``: the file's samples per pixel; the fake
+        ground truths have 4, the file 64, so a fake run is one below its files' samples)."""
+        from types import SimpleNamespace
+
+        return SimpleNamespace(spp=64)
+
     def content_hash(self) -> str:
         return "hash-" + self.name
 

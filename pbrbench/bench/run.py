@@ -279,7 +279,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                     outcome.renders += int(not cached)
                     bar.update(1, name)
         for n in names:
-            store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1])
+            store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1], spp_file=specs[n].render.spp)
         outcome.render_seconds = time.perf_counter() - t0
 
         # ---- jobs (finished ones with unchanged inputs come from the job cache)

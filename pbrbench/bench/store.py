@@ -18,7 +18,8 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
   better (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
-  Monte Carlo noise floor, render time): the report shows its noise without re-reading renders.
+  Monte Carlo noise floor, render time) and the scene file's spp: the report shows its noise
+  without re-reading renders.
 
 Concurrency: WAL journal and a busy timeout, and every write is one short ``BEGIN IMMEDIATE``
 transaction, so two runs writing at once wait for each other instead of failing or corrupting
@@ -137,6 +138,9 @@ ALTER TABLE scores ADD COLUMN unstable INTEGER
 """),
     (6, "the values of a seed-dependent score at its other seeds (JSON; rep_noise keeps the first)", """
 ALTER TABLE scores ADD COLUMN noise_reps TEXT
+"""),
+    (7, "the scene file's samples per pixel beside the ground truth's (what more samples would change)", """
+ALTER TABLE ground_truths ADD COLUMN spp_file INTEGER
 """),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
@@ -552,13 +556,16 @@ class Store:
             out.append(d)
         return out
 
-    def add_ground_truth(self, run_id: str, scene: str, meta: dict, *, from_cache: bool):
+    def add_ground_truth(self, run_id: str, scene: str, meta: dict, *, from_cache: bool, spp_file: int | None = None):
+        """Record the ground truth ``meta`` of ``scene`` used by the run; ``spp_file``: the samples
+        per pixel its scene file asks for (what the standard quality renders at least)."""
         with self.transaction() as c:
             c.execute("INSERT OR REPLACE INTO ground_truths (run, scene, scene_hash, quality, spp, resolution, noise, "
-                      "render_seconds, from_cache, tags) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                      "render_seconds, from_cache, tags, spp_file) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                       (run_id, scene, meta.get("scene_hash"), meta.get("quality"), meta.get("spp"),
                        json.dumps(meta.get("resolution")), json.dumps(meta.get("noise", {})),
-                       meta.get("wall_s"), int(bool(from_cache)), json.dumps(list(meta.get("tags", [])))))
+                       meta.get("wall_s"), int(bool(from_cache)), json.dumps(list(meta.get("tags", []))),
+                       None if spp_file is None else int(spp_file)))
 
     def ground_truths(self, run_id: str) -> list[dict]:
         out = []

@@ -433,7 +433,7 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
     failures = [{"task": t, "scene": j["scene"], "condition": j["condition"], "algorithm": a, "message": msg}
                 for t, jobs in figures.items() for j in jobs for a, msg in sorted(j["failures"].items())]
     return {
-        "noise": noise_statement(heads, run),
+        "noise": noise_statement(heads, gts),
         "run": run, "meta_rows": meta_rows, "headlines": heads, "tasks": tasks, "ground_truths": gts,
         "history": history, "nav_tasks": [t["name"] for t in tasks], "gallery": gallery,
         "has_gallery": bool(gallery),
@@ -443,10 +443,14 @@ def build_context(store, run_id: str, *, run_dir: Path, status: str | None = Non
     }
 
 
-def noise_statement(heads: list[dict], run: dict) -> dict:
+def noise_statement(heads: list[dict], gts: list[dict]) -> dict:
     """How many headline cells are noise-limited (|Monte Carlo bias| > SE) or bimodal, per task,
-    and what more samples would change (the bias falls as 1/spp: at ``s`` times the samples to
-    about 1/s of its value)."""
+    and what more samples would change.  The bias falls as 1/spp and the standard error as
+    1/sqrt(spp); the standard quality renders at least each scene file's samples per pixel
+    (``gts``: the run's ground truths, with ``spp`` and the file's ``spp_file``), so a run with
+    ``1/s`` of them would see its bias cut to about ``1/s`` and its standard error to ``1/sqrt(s)``.
+    The range of ``s`` is over the run's scenes (draft's floor of two samples per group makes it
+    differ from scene to scene)."""
     per_task, n_cells, n_lim, n_unst = [], 0, 0, 0
     for h in heads:
         cells = [c for r in h["rows"] for c in r["cells"] if c.get("value") is not None]
@@ -455,14 +459,17 @@ def noise_statement(heads: list[dict], run: dict) -> dict:
         n_cells, n_lim, n_unst = n_cells + len(cells), n_lim + lim, n_unst + unst
         if lim or unst:
             per_task.append({"task": h["task"], "cells": len(cells), "limited": lim, "unstable": unst})
-    prof = run["config"].get("quality_profile") or {}
-    scale = prof.get("spp_scale")
+    # the scenes rendered below their files' samples (the others are already at them)
+    ratios = sorted(r for g in gts if (g.get("spp") or 0) > 0 and (g.get("spp_file") or 0) > 0
+                    and (r := g["spp_file"] / g["spp"]) > 1)
     hint = ""
-    if n_lim and scale and scale < 1:
-        hint = (f"This run has {scale:g} of the scene files' samples; the standard quality has {1 / scale:g} times as "
-                f"many, which cuts the bias to about {scale:g} of the values shown (it falls as 1/spp) and the standard "
-                f"error to about {scale ** 0.5:.2g}: run `pbrbench run --quality standard` before drawing conclusions "
-                "from the marked cells.")
+    if n_lim and ratios:
+        lo, hi = ratios[0], ratios[-1]
+        few = f"1/{lo:.3g}" if lo == hi else f"1/{lo:.3g} to 1/{hi:.3g}"
+        hint = (f"This run rendered {few} of the scene files' samples per pixel; the standard quality renders at least "
+                f"the files' counts, which cuts the bias to about {few} of the values shown (it falls as 1/spp) and "
+                f"the standard error to about {lo ** -0.5:.2g}" + ("" if lo == hi else f" to {hi ** -0.5:.2g}") +
+                ": run `pbrbench run --quality standard` before drawing conclusions from the marked cells.")
     return {"cells": n_cells, "limited": n_lim, "unstable": n_unst, "per_task": per_task, "hint": hint}
 
 

@@ -62,7 +62,8 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
         rid = s.create_run(quality_name="draft", config={"tasks": ["t"]}, variant="scalar_rgb", env=ENV)
         s.add_job_result(rid, "t|s|local|", "t", [score(value=0.5), score("nan_metric", float("nan"))], seconds=1.0)
         s.add_ground_truth(rid, "s", {"scene_hash": "h", "quality": "draft", "spp": 4, "resolution": [32, 32],
-                                      "noise": {"radiance_rel_sd_rms": 0.01}, "wall_s": 0.2}, from_cache=False)
+                                      "noise": {"radiance_rel_sd_rms": 0.01}, "wall_s": 0.2}, from_cache=False,
+                           spp_file=48)
         s.set_status(rid, "complete")
         r = s.get_run(rid)
         assert r["status"] == "complete" and r["finished"] and r["config"] == {"tasks": ["t"]}
@@ -71,6 +72,7 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
         assert sc["rmse"]["value"] == 0.5 and sc["rmse"]["job"] == "t|s|local|"
         assert math.isnan(sc["nan_metric"]["value"])
         assert s.ground_truths(rid)[0]["noise"]["radiance_rel_sd_rms"] == 0.01
+        assert (s.ground_truths(rid)[0]["spp"], s.ground_truths(rid)[0]["spp_file"]) == (4, 48)
         out = s.export_json(rid, tmp_path / "run" / "scores.json")
         data = json.loads(out.read_text())  # strict JSON: NaN written as null
         assert data["run"]["id"] == rid and len(data["scores"]) == 2

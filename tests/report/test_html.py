@@ -305,3 +305,21 @@ def test_interreflection_headline_has_a_row_group_per_scene_class_and_the_cost_s
         assert rows[("white room", "local")][2].startswith("0.68 ±")
     html = (index.parent / "task-interreflection.html").read_text()
     assert 'class="cost"' in html and 'class="gain"' in html and "global − local" in html
+
+
+def test_the_noise_limited_hint_uses_each_scenes_real_sample_fraction():
+    # draft's floor of two samples per group gives 8 spp on scenes that ask for 48 or 240: the
+    # run has 1/6 to 1/30 of the files' samples (not the profile's nominal 1/16)
+    from pbrbench.report.html import noise_statement
+
+    heads = [{"task": "t", "rows": [{"cells": [{"value": 1.0, "cls": "biased"}, {"value": 2.0, "cls": ""}]}]}]
+    gts = [{"spp": 8, "spp_file": 48}, {"spp": 8, "spp_file": 240}, {"spp": 8, "spp_file": 8}]
+    ns = noise_statement(heads, gts)
+    assert (ns["cells"], ns["limited"]) == (2, 1)
+    assert "1/6 to 1/30 of the scene files' samples" in ns["hint"]
+    assert "standard error to about 0.41 to 0.18" in ns["hint"]
+    # a run at the files' samples, or one stored before the files' counts were recorded: no claim
+    assert noise_statement(heads, [{"spp": 48, "spp_file": 48}])["hint"] == ""
+    assert noise_statement(heads, [{"spp": 8, "spp_file": None}])["hint"] == ""
+    # nothing noise-limited: nothing to say
+    assert noise_statement([{"task": "t", "rows": [{"cells": [{"value": 1.0, "cls": ""}]}]}], gts)["hint"] == ""
