@@ -36,8 +36,8 @@ the normals from 8.1 to 6.4 degrees but on the groove it took them from 1.2 to 4
 (``docs/inverse.md``).
 
 Optimiser (fixed budget, seeded).  Coarse to fine over the ``levels`` (film downsampling
-factors; the images box-averaged, as a coarser box-filtered film records them), ``iterations``
-per level.  Heights: Adam (Kingma & Ba 2015) with one normalisation for the whole vector (the
+factors; the images box-averaged, as a coarser box-filtered film records them; the default is the
+full resolution alone, see Start), ``iterations`` per level.  Heights: Adam (Kingma & Ba 2015) with one normalisation for the whole vector (the
 RMS of the second moments; Nicolet et al. 2021 use the maximum) on the Sobolev gradient
 ``(I + \lambda L)^{-1} \nabla_z E`` (``L`` the grid Laplacian, ``\lambda = (s/h)^2`` for a smoothing
 length ``s = sobolev`` film widths: the preconditioner of the large-steps method of Nicolet et al.
@@ -48,10 +48,20 @@ exponentially from ``lr`` to ``decay * lr`` over all iterations (``lr_height`` i
 Adam's moments restart at each level.  The result averages the iterates of the last ``average``
 fraction of the last level (Polyak averaging of the stochastic steps).
 
-Start.  Woodham's photometric stereo (:func:`pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`)
-on the images, its normals integrated into corner heights by least squares
-(:func:`~pbrbench.inverse.heightfield.heights_from_normals`), its albedo where valid (the median
-elsewhere); or ``start``.
+Start.  A photometric-stereo estimate on the images, its normals integrated into corner heights
+by least squares (:func:`~pbrbench.inverse.heightfield.heights_from_normals`), its albedo where
+valid (the median elsewhere): by default the one whose model matches the transport of the images,
+Nayar et al.'s interreflection-corrected estimate
+(:func:`pbrbench.infer.photometric_stereo.photometric_stereo_nayar1991`) for images with
+interreflection (``max_depth`` other than 2), Woodham's local one
+(:func:`pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`) for direct light only
+(Nayar's correction on such images removes light that is not there: 23 degrees on the cup).  The
+fit is a refinement: the direct adjoint cannot undo the flattening that interreflection gives a
+local start (from Woodham's start the cup ends at 7.2 degrees with the former coarse-to-fine
+schedule), and even from the true surface a large step size walks the iterates away from it (the
+Adam steps are as long as the learning rate whatever the gradient, and at the optimum the
+gradient is the renders' noise), so the default schedule is one level at full resolution with a
+small height step (``docs/inverse.md``).  ``start`` may also name the method or give the start.
 
 Assumed known (``docs/inverse.md``): the camera (orthographic); the lights as rendered
 (``light_model="scene"``: the scene's emitters, area sources included; ``"vectors"``: distant
@@ -89,7 +99,10 @@ from pbrbench.checks import (
     check_positive,
 )
 
-VERSION = "2"  # the standard schedule spends its iterations at the coarse levels: (80, 16, 6), was (30, 12, 20)
+VERSION = "3"  # starts from the estimate whose model matches the transport (nayar1991 with interreflection), then
+# refines at full resolution with a small step: levels (1,), iterations (20,), lr_height 0.0005 (was Woodham's start,
+# levels (4, 2, 1), iterations (80, 16, 6), lr_height 0.01)
+STARTS = ("woodham1980", "nayar1991")
 ADJOINTS = ("direct", "full")
 LIGHT_MODELS = ("scene", "vectors")
 CLAMP = 20.0           # per-vertex gradient clamp, in medians of |dE/dz|
@@ -103,7 +116,7 @@ class InverseRenderingResult:
     photometric-stereo convention for radiance images), ``valid`` (H, W) the data pixels,
     ``height`` (H, W) pixel-centre heights along the camera axis (mean 0), ``corner_heights``
     (H+1, W+1) the mesh's vertex heights (NaN off the surface), ``initial_normals`` /
-    ``initial_albedo`` the start (Woodham's, or ``start``), ``loss`` the objective per iteration
+    ``initial_albedo`` the start (``options["start"]`` names it), ``loss`` the objective per iteration
     (``level`` the level of each), ``wall_s`` / ``cpu_s`` the time, ``paths`` the camera paths
     traced (every render, primal and adjoint), ``options`` the settings used.
     """
@@ -239,11 +252,11 @@ class Options:
     """The schedule and model options of :func:`inverse_rendering_nicolet2021` (its Parameters
     say what each means); :meth:`checked` validates them for an image size."""
 
-    levels: tuple = (4, 2, 1)
-    iterations: tuple = (80, 16, 6)
+    levels: tuple = (1,)
+    iterations: tuple = (20,)
     spp: int = 16
     spp_grad: int = 4
-    lr_height: float = 0.01
+    lr_height: float = 0.0005
     lr_albedo: float = 0.02
     decay: float = 0.05
     smoothness: float = 0.5
@@ -315,27 +328,44 @@ def _check_inputs(images, lights, mask, scene, max_depth):
     return imgs, lv, m, max_depth
 
 
-def _start(imgs, lv, data, surf, hf_full, start):
-    """Corner heights and albedo rho to start from: Woodham's normals integrated and his albedo
-    (the median where it is not valid), or ``start``."""
-    from pbrbench.infer.photometric_stereo import photometric_stereo_woodham1980
+def _start(imgs, lv, data, surf, hf_full, start, max_depth):
+    """Corner heights, albedo rho and the start's name: the normals of the photometric-stereo
+    method ``start`` names (None: :func:`_start_method`) integrated and its albedo (the median
+    where it is not valid), or the pair ``start``."""
+    from pbrbench.infer.photometric_stereo import METHODS
     from pbrbench.inverse import heightfield as HF
 
     h, w = data.shape
-    ws = photometric_stereo_woodham1980(imgs, lv, mask=data)
-    if start is None:
-        zc = _fill_nearest(hf_full.corners(HF.heights_from_normals(ws.normals, ws.valid, hf_full)), hf_full.active)
-        rho0 = np.pi * ws.albedo
-        med = float(np.median(rho0[ws.valid])) if ws.valid.any() else 0.5
-        rho = np.clip(np.where(ws.valid, rho0, med), 0.01, 0.99)
-    else:
-        zc = as_float_array(start[0], "start heights", ndim=(2,))
-        rho = as_float_array(start[1], "start albedo", ndim=(2,))
-        if zc.shape != (h + 1, w + 1) or rho.shape != (h, w):
-            raise ValueError(f"start: heights {zc.shape} and albedo {rho.shape}; expected {(h + 1, w + 1)} and {(h, w)}")
-        zc = _fill_nearest(np.nan_to_num(zc), hf_full.active & np.isfinite(zc))
-        rho = np.clip(rho, 0.01, 0.99)
-    return zc, rho
+    if start is None or isinstance(start, str):
+        name = _start_method(max_depth) if start is None else start
+        if name not in STARTS:
+            raise ValueError(f"start: {name!r}; use one of {', '.join(STARTS)}, None (by the transport) or a pair "
+                             "(corner heights, albedo)")
+        try:
+            est = METHODS[name](imgs, lv, mask=data)
+        except ValueError as e:
+            if start is not None or name == "woodham1980":
+                raise
+            est, name = METHODS["woodham1980"](imgs, lv, mask=data), f"woodham1980 (nayar1991 refused: {e})"
+        zc = _fill_nearest(hf_full.corners(HF.heights_from_normals(est.normals, est.valid, hf_full)), hf_full.active)
+        rho0 = np.pi * est.albedo
+        med = float(np.median(rho0[est.valid])) if est.valid.any() else 0.5
+        rho = np.clip(np.where(est.valid, rho0, med), 0.01, 0.99)
+        return zc, rho, name
+    if len(start) != 2:
+        raise ValueError("start: give a method name or a pair (corner heights (H+1, W+1), albedo (H, W))")
+    zc = as_float_array(start[0], "start heights", ndim=(2,))
+    rho = as_float_array(start[1], "start albedo", ndim=(2,))
+    if zc.shape != (h + 1, w + 1) or rho.shape != (h, w):
+        raise ValueError(f"start: heights {zc.shape} and albedo {rho.shape}; expected {(h + 1, w + 1)} and {(h, w)}")
+    zc = _fill_nearest(np.nan_to_num(zc), hf_full.active & np.isfinite(zc))
+    return zc, np.clip(rho, 0.01, 0.99), "given"
+
+
+def _start_method(max_depth: int) -> str:
+    """The start whose model matches the transport of the images: Woodham's for direct light
+    (``max_depth == 2``), Nayar et al.'s interreflection-corrected one otherwise."""
+    return "woodham1980" if max_depth == 2 else "nayar1991"
 
 
 @dataclass
@@ -428,8 +458,8 @@ def _fit_level(fit: _Fit, f: int, n_it: int, last: bool, zc: np.ndarray, rho: np
 
 
 def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int = -1,
-                                  levels=(4, 2, 1), iterations=(80, 16, 6), spp: int = 16, spp_grad: int = 4,
-                                  lr_height: float = 0.01, lr_albedo: float = 0.02, decay: float = 0.05,
+                                  levels=(1,), iterations=(20,), spp: int = 16, spp_grad: int = 4,
+                                  lr_height: float = 0.0005, lr_albedo: float = 0.02, decay: float = 0.05,
                                   smoothness: float = 0.5, sobolev: float = 0.5, average: float = 0.3,
                                   robust: float = 3.0, relief_every: int = 0, relief_modes_n: int = 3,
                                   relief_step: float = 0.05, relief_spp: int = 8, relief_sigma: float = 0.0,
@@ -442,8 +472,8 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
     images : (K, H, W) or (K, H, W, C) array
         Linear radiance images, one per light of the light set (colour: the channel mean).
     lights : (K, 3) array
-        Source vectors (camera frame, toward the source, length = irradiance): the Woodham start,
-        and the emitters with ``light_model="vectors"``.
+        Source vectors (camera frame, toward the source, length = irradiance): the start's
+        photometric stereo, and the emitters with ``light_model="vectors"``.
     mask : (H, W) bool
         The object's pixels (required: the loss is taken over them).
     scene : pbrbench.scene.spec.SceneSpec
@@ -484,9 +514,12 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
     seed : int
         Seed of every Monte Carlo render: the result is a deterministic function of the inputs,
         the options and the seed.
-    start : (heights, albedo), optional
-        The start instead of Woodham's: corner heights (H+1, W+1) along the camera axis (row 0
-        at the top) and the albedo rho (H, W) (not divided by pi).
+    start : None, str or (heights, albedo)
+        None (the default): ``"nayar1991"`` for images with interreflection (``max_depth`` other
+        than 2), ``"woodham1980"`` for direct light; where Nayar's method refuses the images
+        (e.g. a surface of fewer than 4 facets), Woodham's, recorded in ``options["start"]``.  A
+        name of :data:`STARTS`: that method's estimate.  A pair: corner heights (H+1, W+1) along
+        the camera axis (row 0 at the top) and the albedo rho (H, W) (not divided by pi).
     callback : callable, optional
         Called after each level as ``callback(factor, normals, albedo)`` (full resolution,
         albedo divided by pi).
@@ -518,7 +551,7 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
     ext = frame_extension(scene, h, w) if o.extend else (0.0, 0.0, 0.0, 0.0)
     data, surf = HF.pixel_sets(m, imgs)
     hf_full = HF.HeightField(surf, float(scene.camera.half_width))
-    zc, rho = _start(imgs, lv, data, surf, hf_full, start)
+    zc, rho, start_name = _start(imgs, lv, data, surf, hf_full, start, max_depth)
     initial_normals = np.where(surf[..., None], HF.pixel_normals(zc, hf_full.h), 0.0)
     initial_albedo = np.where(data, rho / np.pi, 0.0)
 
@@ -534,7 +567,7 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
     normals = np.where(surf[..., None], HF.pixel_normals(zc, hf_full.h), 0.0)
     height = np.where(surf, HF.pixel_heights(zc), 0.0)
     height = np.where(surf, height - height[surf].mean(), 0.0)
-    opts = {**asdict(o), "extend": ext, "max_depth": max_depth, "variant": mi.variant()}
+    opts = {**asdict(o), "extend": ext, "max_depth": max_depth, "variant": mi.variant(), "start": start_name}
     return InverseRenderingResult(
         normals=normals, albedo=np.where(data, rho / np.pi, 0.0), valid=data, height=height,
         corner_heights=np.where(hf_full.active, zc, np.nan), initial_normals=initial_normals,

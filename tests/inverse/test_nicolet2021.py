@@ -123,7 +123,8 @@ def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
     mask = np.ones((n, n), bool)
     res = inverse_rendering_nicolet2021(
         targets, lights, mask=mask, scene=groove, max_depth=2, levels=(1,), iterations=(12,), spp=8,
-        spp_grad=4, relief_every=4, relief_spp=4, start=(0.5 * z_true, np.full((n, n), 0.6)), seed=1)
+        spp_grad=4, relief_every=4, relief_spp=4, start=(0.5 * z_true, np.full((n, n), 0.6)), seed=1,
+        lr_height=0.01)   # a far start: the large step of a coarse-to-fine schedule (the default refines)
     truth = pixel_normals(z_true, hf.h)
     data, _ = pixel_sets(mask, targets)
 
@@ -136,3 +137,56 @@ def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
     alb = np.pi * res.albedo[data]
     assert np.abs(alb / 0.9 - 1).mean() < 0.5 * abs(0.6 / 0.9 - 1)
     assert res.paths > 0 and res.options["variant"].endswith("_ad_rgb")
+
+
+def _cup_start(max_depth, start=None, n=32):
+    """``N._start`` on the local (direct-light) images of a concave cup: Lambertian shading of the
+    true normals, no interreflection."""
+    from pbrbench.inverse import heightfield as HF
+    from pbrbench.shading.lambert import lambertian_images, ring_lights
+    from pbrbench.shading.surfaces import on_grid
+
+    s = on_grid("cup", n, half_width=1.0)
+    lights = ring_lights(8)
+    imgs = lambertian_images(s.normals, 0.9 / np.pi, lights, mask=s.mask)
+    data, surf = HF.pixel_sets(s.mask, imgs)
+    hf = HF.HeightField(surf, 1.0)
+    zc, rho, name = N._start(imgs, lights, data, surf, hf, start, max_depth)
+    got = HF.pixel_normals(zc, hf.h)
+    err = np.degrees(np.arccos(np.clip((got * s.normals).sum(-1), -1, 1)))[data]
+    return float(err.mean()), name, rho[data]
+
+
+def test_the_start_follows_the_transport_of_the_images():
+    # direct-light images: Woodham's start, whose integrated normals are the cup's (the height
+    # field's own discretisation error only); Nayar's correction on the same images removes
+    # interreflection that is not there and deepens the cup
+    e_local, name_local, rho = _cup_start(max_depth=2)
+    e_nayar, name_nayar, _ = _cup_start(max_depth=-1)
+    assert name_local == "woodham1980" and name_nayar == "nayar1991"
+    assert e_local < 2.0 and e_nayar > 2.0 * e_local
+    np.testing.assert_allclose(np.median(rho), 0.9, rtol=1e-6)
+    # a name chooses the method whatever the transport
+    assert _cup_start(max_depth=-1, start="woodham1980")[:2] == (e_local, "woodham1980")
+
+
+@pytest.mark.parametrize("bad, match", [("horn1989", "start: 'horn1989'; use one of woodham1980, nayar1991"),
+                                        ((np.zeros((33, 33)),), "start: give a method name or a pair")])
+def test_a_bad_start_is_refused_with_a_fix(bad, match):
+    with pytest.raises(ValueError, match=match):
+        _cup_start(max_depth=-1, start=bad)
+
+
+def test_a_surface_too_small_for_nayars_kernel_starts_from_woodham_and_says_so():
+    from pbrbench.inverse import heightfield as HF
+    from pbrbench.shading.lambert import ring_lights
+
+    lights = ring_lights(8)
+    m = np.zeros((16, 16), bool)
+    m[7:9, 7] = m[7, 8] = True            # three pixels: Nayar's kernel needs four facets
+    imgs = np.where(m, 0.3, 0.0)[None] * lights[:, 2, None, None]
+    data, surf = HF.pixel_sets(m, imgs)
+    _, _, name = N._start(imgs, lights, data, surf, HF.HeightField(surf, 1.0), None, -1)
+    assert name.startswith("woodham1980 (nayar1991 refused: mask: the surface covers 3 facet(s)")
+    with pytest.raises(ValueError, match="fewer than 4"):      # asked for by name, the refusal stands
+        N._start(imgs, lights, data, surf, HF.HeightField(surf, 1.0), "nayar1991", -1)

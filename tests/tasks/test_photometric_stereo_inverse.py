@@ -53,7 +53,8 @@ def test_scene_interface_call_scores_and_figures(monkeypatch):
         # the truth from the ground truth's normals: the fake is perfect
         n = np.where(mask[..., None], gt["normals"], n)
         return {"normals": n, "albedo": np.where(mask, 0.6 / np.pi, 0.0), "loss": np.array([3.0, 2.0, 1.0]),
-                "level": np.array([2, 1, 1]), "initial_normals": np.where(mask[..., None], [0.0, 0.0, 1.0], 0.0)}
+                "level": np.array([2, 1, 1]), "initial_normals": np.where(mask[..., None], [0.0, 0.0, 1.0], 0.0),
+                "options": {"start": "nayar1991"}}
 
     job = ps_job("global", lights=vec, scene="ps_groove[albedo=0.9]")
     res = run_task(TASK, job, {"ps_groove[albedo=0.9]": gt}, seed=5, quality="standard",
@@ -65,7 +66,7 @@ def test_scene_interface_call_scores_and_figures(monkeypatch):
     assert sc[("woodham1980", "normal_mean_deg")] < 0.01
     plot = res.plots["inverse:fake: loss per iteration"]
     assert plot["series"]["objective E"] == [3.0, 2.0, 1.0]
-    before = res.error_maps["angular error (deg): inverse:fake, its start (Woodham)"]
+    before = res.error_maps["angular error (deg): inverse:fake, its start (nayar1991)"]   # named by the method
     after = res.error_maps["angular error (deg): inverse:fake"]
     assert np.nanmean(before) > 1.0 > np.nanmean(after)
 
