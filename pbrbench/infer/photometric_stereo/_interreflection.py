@@ -280,3 +280,51 @@ def interreflect(direct, normals, rho, mask, *, block: int, pad: float):
         out[:, f.pix, c] = vals[:, :, c] + (rp[:, c][:, None] * (f.spread @ (ks @ lf))).T
     out = out.reshape(kk, h, w, nc)
     return out if colour else out[..., 0]
+
+
+def shadowed(normals, used, lights, margin: float = 0.25) -> np.ndarray:
+    r"""(K, H, W) bool: the measurements that the surface of ``normals`` puts in shadow.
+
+    A pixel is in light ``k``'s *attached* shadow when ``N . s_k <= 0``, and in its *cast*
+    shadow when the ray from the pixel toward the source passes below the surface: with the
+    heights ``z`` of the normals integrated over ``used`` (:func:`pbrbench.infer.integration.integrate_lsq`,
+    pixel units; each connected part of ``used`` on its own), some pixel ``q`` of the same part
+    on the ray's ground track at distance ``t`` (pixels) satisfies
+    ``z_q > z_p + t \tan(e_k) + margin`` (``e_k`` the source's elevation over the image plane;
+    ``margin`` in pixels absorbs the integration's rounding).  Pixels outside ``used`` occlude
+    nothing (empty space) and are never in shadow.
+    """
+    from scipy import ndimage
+
+    from pbrbench.infer.integration import integrate_lsq
+
+    h, w = used.shape
+    s = np.asarray(lights, float)
+    s = s / np.maximum(np.linalg.norm(s, axis=1, keepdims=True), 1e-300)
+    out = (np.einsum("hwc,kc->khw", normals, s) <= 0.0) & used[None]
+    ok = used & (normals[..., 2] > 0)
+    if ok.sum() < 2:
+        return out
+    nz = np.maximum(normals[..., 2], MIN_NZ)
+    # integrate_lsq's gradients: f_x along x (columns), f_y along y (up); a unit normal is (-f_x, -f_y, 1) / norm
+    z = integrate_lsq(gradients=(np.where(ok, -normals[..., 0] / nz, 0.0), np.where(ok, -normals[..., 1] / nz, 0.0)),
+                      mask=ok)
+    part, _ = ndimage.label(ok)
+    rr, cc = np.mgrid[0:h, 0:w]
+    zmax = float(z[ok].max())
+    for k in range(len(s)):
+        hor = float(np.hypot(s[k, 0], s[k, 1]))
+        if hor < 1e-9:
+            continue            # a source on the axis casts no shadow on a height field seen along it
+        dx, dy, tan = s[k, 0] / hor, s[k, 1] / hor, s[k, 2] / hor
+        t_max = min(1.5 * max(h, w), (zmax - float(z[ok].min())) / max(tan, 1e-9) + 1.0)
+        cast = np.zeros((h, w), bool)
+        for t in np.arange(1.0, t_max + 1.0, 1.0):
+            r = np.rint(rr - t * dy).astype(int)     # rows grow downward: y up is -row
+            c = np.rint(cc + t * dx).astype(int)
+            ins = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+            r, c = np.where(ins, r, 0), np.where(ins, c, 0)
+            same = ins & (part[r, c] == part) & ok
+            cast |= same & (z[r, c] > z + t * tan + margin)
+        out[k] |= cast & ok
+    return out

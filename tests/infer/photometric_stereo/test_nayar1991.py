@@ -203,3 +203,87 @@ def test_no_correction_is_the_local_solve():
     assert r.iterations == 0 and r.n_facets == 0
     np.testing.assert_array_equal(r.normals, w.normals)
     np.testing.assert_array_equal(r.albedo, w.albedo)
+
+
+# -------------------------------------------------------------------------- the premise test
+A60 = np.tan(np.radians(60.0))   # a deep V groove: faces 60 degrees from the image plane
+# two sources across the groove at 45 degrees elevation (each shadows the far face and part of the
+# near one), two along it (no shadow) and two across it at 70 degrees (above the faces: no shadow)
+SHADOW_LIGHTS = np.pi * np.array([[np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)]
+                                  for a, e in np.radians([(0, 45), (180, 45), (90, 45), (270, 45), (0, 70), (180, 70)])])
+
+
+def _groove60_direct(size, rho):
+    """Direct images of ``z = tan(60 deg) |x|`` filling the view under :data:`SHADOW_LIGHTS`, cast
+    shadows from the closed form: a source across the groove (ground track along +x or -x, height
+    per unit of x travel ``t``) shadows the near face's points within ``X (a - t) / (a + t)`` of the
+    crease (the ray meets the far face at ``x* = |x0| (a + t) / (a - t)``, which must lie inside the
+    view, ``x* <= X`` at the last pixel centre)."""
+    n, m = _groove(size, slope=A60)
+    direct = lambertian_images(n, rho, SHADOW_LIGHTS, mask=m, radiance=True)
+    x = np.arange(size) + 0.5 - size / 2                     # pixel centres, crease at 0 (pixel units)
+    X = size / 2 - 0.5
+    cast = np.zeros((len(SHADOW_LIGHTS), size, size), bool)
+    for k, s in enumerate(SHADOW_LIGHTS / np.pi):
+        if abs(s[0]) < 1e-9:
+            continue
+        t = s[2] / abs(s[0])
+        if t < A60:
+            near = (x < 0) if s[0] > 0 else (x > 0)
+            cast[k] = (near & (np.abs(x) <= X * (A60 - t) / (A60 + t)))[None, :]
+    return n, m, np.where(cast, 0.0, direct), cast
+
+
+def test_shadowed_matches_the_closed_form_of_a_deep_groove():
+    size = 64
+    n, m, _, cast = _groove60_direct(size, 0.5)
+    sh = ir.shadowed(n, m, SHADOW_LIGHTS / np.pi)
+    attached = np.einsum("hwc,kc->khw", n, SHADOW_LIGHTS) <= 0
+    assert attached[0].sum() == size * size // 2 and attached[2].sum() == 0   # the far face; none along the groove
+    for k in range(len(SHADOW_LIGHTS)):
+        assert np.all(sh[k][attached[k]])                                     # attached shadows are in
+        got, want = (sh[k] & ~attached[k]).sum(axis=1), cast[k].sum(axis=1)  # cast pixels per row
+        assert np.all(np.abs(got - want) <= 1), (k, got[:3], want[:3])
+    assert cast[0].sum() > 5 * size                   # the test has cast shadows to find (7 columns)
+    assert not sh[2:].any() and not sh[4:].any()      # sources along the groove or above the faces: none
+
+
+def test_premise_refuted_on_direct_images_returns_the_local_solve():
+    # direct light only: the deep groove's shadows are black, where the kernel of the local
+    # estimate predicts interreflected light; without the test the method removes light that is not
+    # there and bends the normals
+    n, m, direct, _ = _groove60_direct(64, 0.8)
+    w = photometric_stereo_woodham1980(direct, SHADOW_LIGHTS, mask=m)
+    r = photometric_stereo_nayar1991(direct, SHADOW_LIGHTS, mask=m)
+    old = photometric_stereo_nayar1991(direct, SHADOW_LIGHTS, mask=m, shadow_light_min=0)
+    assert r.refuted and r.shadow_light < 0.05 and r.iterations == 0 and not r.interreflection.any()
+    for name in ("normals", "albedo", "residual", "n_used", "valid"):
+        np.testing.assert_array_equal(getattr(r, name), getattr(w, name))
+    v = w.valid
+    assert ang(w.normals, n)[v].mean() < 1e-6
+    assert ang(old.normals, n)[v].mean() > 5.0        # what the test prevents
+    assert np.isnan(old.shadow_light) and not old.refuted
+
+
+def test_premise_holds_on_images_with_interreflection():
+    # the same groove with its interreflection (the facet model): the local estimate's shadows hold
+    # more light than its kernel predicts (the pseudo shape is shallower than the surface), the
+    # method runs as without the test and recovers the groove
+    rho = 0.3
+    n, m, direct, _ = _groove60_direct(64, rho)
+    imgs = ir.interreflect(direct, n, np.full(m.shape, rho), m, block=2, pad=0.5)
+    r = photometric_stereo_nayar1991(imgs, SHADOW_LIGHTS, mask=m)
+    old = photometric_stereo_nayar1991(imgs, SHADOW_LIGHTS, mask=m, shadow_light_min=0)
+    assert not r.refuted and r.iterations > 0 and r.shadow_light > 1.0
+    np.testing.assert_array_equal(r.normals, old.normals)
+    w = photometric_stereo_woodham1980(imgs, SHADOW_LIGHTS, mask=m)
+    assert ang(w.normals, n)[w.valid].mean() > 10.0
+    assert ang(r.normals, n)[r.valid].mean() < 0.01
+
+
+@pytest.mark.parametrize("opt, val", [("shadow_light_min", -0.1), ("shadow_support", 0.0), ("shadow_support", 1.5)])
+def test_bad_premise_options(opt, val):
+    n, m = _groove(16)
+    imgs = lambertian_images(n, 0.5, LIGHTS, mask=m, radiance=True)
+    with pytest.raises(ValueError, match=opt):
+        photometric_stereo_nayar1991(imgs, LIGHTS, mask=m, **{opt: val})
