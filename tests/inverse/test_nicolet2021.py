@@ -137,6 +137,47 @@ def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
     alb = np.pi * res.albedo[data]
     assert np.abs(alb / 0.9 - 1).mean() < 0.5 * abs(0.6 / 0.9 - 1)
     assert res.paths > 0 and res.options["variant"].endswith("_ad_rgb")
+    vs = res.options["versus_start"]
+    assert vs["kept_fit"] and vs["improvement"] > 2 * vs["se"]      # far better than the start: kept
+
+
+@pytest.mark.render
+def test_a_fit_worse_than_its_start_gives_the_start_back(groove):
+    """Direct-light targets of the true groove, the true surface as the start, and a height step
+    far too large for it: the iterates walk away from the optimum, their data term is worse than
+    the start's beyond the renders' noise, and the start is returned (with ``keep_start=0`` the
+    walked-away fit is)."""
+    from pbrbench.inverse.heightfield import HeightField, pixel_normals
+    from pbrbench.inverse.render import HeightFieldScene, ad_mitsuba
+    from pbrbench.inverse.scene import frame_extension, light_dicts
+
+    mi = ad_mitsuba()
+    n = 16
+    lights = light_vectors(groove)
+    hf = HeightField(np.ones((n, n), bool), groove.camera.half_width, extend=frame_extension(groove, n, n))
+    x, _ = hf.corner_xy()
+    z_true = np.abs(x)
+    sc = HeightFieldScene(groove, hf, hf.params_from_corners(z_true), np.full((n, n), 0.9),
+                          light_dicts(mi, groove, lights, "scene"), max_depth=2, spp=64)
+    targets = sc.renders(seed=5)
+    del sc
+    mask = np.ones((n, n), bool)
+    truth = pixel_normals(z_true, hf.h)
+
+    def ang(nn):
+        return float(np.degrees(np.arccos(np.clip((nn * truth).sum(-1), -1, 1))).mean())
+
+    kw = dict(mask=mask, scene=groove, max_depth=2, iterations=(6,), spp=8, spp_grad=4, lr_height=0.05, seed=2,
+              start=(z_true, np.full((n, n), 0.9)))
+    kept = inverse_rendering_nicolet2021(targets, lights, **kw)
+    walked = inverse_rendering_nicolet2021(targets, lights, keep_start=0, **kw)
+    vs = kept.options["versus_start"]
+    assert not vs["kept_fit"] and vs["improvement"] < -2 * vs["se"]
+    assert walked.options["versus_start"] is None
+    assert ang(walked.normals) > 1.0, ang(walked.normals)   # the large step did walk away
+    np.testing.assert_allclose(kept.normals, kept.initial_normals)   # a given start: its own normals
+    assert ang(kept.normals) < 1e-6
+    np.testing.assert_allclose(np.pi * kept.albedo, 0.9)
 
 
 def _cup_start(max_depth, start=None, n=32):
@@ -151,7 +192,7 @@ def _cup_start(max_depth, start=None, n=32):
     imgs = lambertian_images(s.normals, 0.9 / np.pi, lights, mask=s.mask)
     data, surf = HF.pixel_sets(s.mask, imgs)
     hf = HF.HeightField(surf, 1.0)
-    zc, rho, name = N._start(imgs, lights, data, surf, hf, start, max_depth)
+    zc, rho, name, _ = N._start(imgs, lights, data, surf, hf, start, max_depth)
     got = HF.pixel_normals(zc, hf.h)
     err = np.degrees(np.arccos(np.clip((got * s.normals).sum(-1), -1, 1)))[data]
     return float(err.mean()), name, rho[data]
@@ -186,7 +227,7 @@ def test_a_surface_too_small_for_nayars_kernel_starts_from_woodham_and_says_so()
     m[7:9, 7] = m[7, 8] = True            # three pixels: Nayar's kernel needs four facets
     imgs = np.where(m, 0.3, 0.0)[None] * lights[:, 2, None, None]
     data, surf = HF.pixel_sets(m, imgs)
-    _, _, name = N._start(imgs, lights, data, surf, HF.HeightField(surf, 1.0), None, -1)
+    _, _, name, _ = N._start(imgs, lights, data, surf, HF.HeightField(surf, 1.0), None, -1)
     assert name.startswith("woodham1980 (nayar1991 refused: mask: the surface covers 3 facet(s)")
     with pytest.raises(ValueError, match="fewer than 4"):      # asked for by name, the refusal stands
         N._start(imgs, lights, data, surf, HF.HeightField(surf, 1.0), "nayar1991", -1)
