@@ -55,7 +55,8 @@ Nayar et al.'s interreflection-corrected estimate
 (:func:`pbrbench.infer.photometric_stereo.photometric_stereo_nayar1991`) for images with
 interreflection (``max_depth`` other than 2), Woodham's local one
 (:func:`pbrbench.infer.photometric_stereo.photometric_stereo_woodham1980`) for direct light only
-(Nayar's correction on such images removes light that is not there: 23 degrees on the cup).  The
+(Nayar's correction on such images removes light that is not there where its premise test
+cannot refute it: 27 degrees on the groove).  The
 fit is a refinement: the direct adjoint cannot undo the flattening that interreflection gives a
 local start (from Woodham's start the cup ends at 7.2 degrees with the former coarse-to-fine
 schedule), and even from the true surface a large step size walks the iterates away from it (the
