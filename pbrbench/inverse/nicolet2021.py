@@ -158,6 +158,12 @@ def _fill_nearest(a: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return a[ii, jj]
 
 
+def _cauchy_scale2(res_data: np.ndarray, kappa: float) -> float:
+    """``c^2`` of the Cauchy loss for the residuals ``res_data`` of the data pixels:
+    ``c = kappa * 1.4826 * median |r|`` (a robust standard deviation), plus a floor."""
+    return (kappa * 1.4826 * float(np.median(np.abs(res_data)))) ** 2 + 1e-30
+
+
 def _robust(res: np.ndarray, data: np.ndarray, wts: np.ndarray, kappa: float):
     r"""``(loss, dE/dR, IRLS weights)`` of the residuals ``res`` (K, H, W): least squares
     (``kappa = 0``) or Cauchy, ``c^2 log(1 + r^2 / c^2)`` with ``c = kappa * 1.4826 * median |r|``
@@ -165,7 +171,7 @@ def _robust(res: np.ndarray, data: np.ndarray, wts: np.ndarray, kappa: float):
     w = wts[None]
     if kappa <= 0:
         return float((w * res * res).sum()), 2.0 * w * res, np.ones_like(res)
-    c2 = (kappa * 1.4826 * float(np.median(np.abs(res[:, data])))) ** 2 + 1e-30
+    c2 = _cauchy_scale2(res[:, data], kappa)
     irls = 1.0 / (1.0 + res * res / c2)
     return float((w * c2 * np.log1p(res * res / c2)).sum()), 2.0 * w * res * irls, irls
 
@@ -492,7 +498,7 @@ def _compare_to_start(fit: _Fit, zc0, rho0, zc, rho, spp: int, z_crit: float) ->
         sc.set_state(zz, rr, grad=False)
         res = (sc.renders(seed) - imgs)[:, data]
         if c2 is None:
-            c2 = (o.robust * 1.4826 * float(np.median(np.abs(res)))) ** 2 if o.robust > 0 else 0.0
+            c2 = _cauchy_scale2(res, o.robust) if o.robust > 0 else 0.0
         per.append((c2 * np.log1p(res * res / c2) if c2 > 0 else res * res).sum(axis=0))
     fit.paths += 2 * k * spp * fit.surf.size
     del sc

@@ -100,26 +100,34 @@ def test_albedo_scale_recovers_a_per_pixel_factor():
     assert np.allclose(N._albedo_scale(R, R * f), f)
 
 
+def _groove_targets(groove, n: int, seed: int):
+    """Direct-light renders (n x n, 64 spp) of the true V groove ``z = |x|`` with albedo 0.9:
+    ``(targets, lights, height field, true corner heights)``."""
+    from pbrbench.inverse.heightfield import HeightField
+    from pbrbench.inverse.render import HeightFieldScene, ad_mitsuba
+    from pbrbench.inverse.scene import frame_extension, light_dicts
+
+    mi = ad_mitsuba()
+    lights = light_vectors(groove)
+    hf = HeightField(np.ones((n, n), bool), groove.camera.half_width, extend=frame_extension(groove, n, n))
+    x, _ = hf.corner_xy()
+    z_true = np.abs(x)
+    sc = HeightFieldScene(groove, hf, hf.params_from_corners(z_true), np.full((n, n), 0.9),
+                          light_dicts(mi, groove, lights, "scene"), max_depth=2, spp=64)
+    targets = sc.renders(seed=seed)
+    del sc
+    return targets, lights, hf, z_true
+
+
 @pytest.mark.render
 def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
     """Targets rendered (direct light, 16 x 16) from the true V groove ``z = |x|`` with albedo
     0.9; from a groove half as deep with albedo 0.6 the loss falls and the normal and albedo
     errors drop."""
-    from pbrbench.inverse.heightfield import HeightField, pixel_normals, pixel_sets
-    from pbrbench.inverse.render import HeightFieldScene, ad_mitsuba
-    from pbrbench.inverse.scene import frame_extension, light_dicts
+    from pbrbench.inverse.heightfield import pixel_normals, pixel_sets
 
-    mi = ad_mitsuba()
     n = 16
-    lights = light_vectors(groove)
-    hw = groove.camera.half_width
-    hf = HeightField(np.ones((n, n), bool), hw, extend=frame_extension(groove, n, n))
-    x, _ = hf.corner_xy()
-    z_true = np.abs(x)
-    sc = HeightFieldScene(groove, hf, hf.params_from_corners(z_true), np.full((n, n), 0.9),
-                          light_dicts(mi, groove, lights, "scene"), max_depth=2, spp=64)
-    targets = sc.renders(seed=123)
-    del sc
+    targets, lights, hf, z_true = _groove_targets(groove, n, seed=123)
     mask = np.ones((n, n), bool)
     res = inverse_rendering_nicolet2021(
         targets, lights, mask=mask, scene=groove, max_depth=2, levels=(1,), iterations=(12,), spp=8,
@@ -147,20 +155,10 @@ def test_a_fit_worse_than_its_start_gives_the_start_back(groove):
     far too large for it: the iterates walk away from the optimum, their data term is worse than
     the start's beyond the renders' noise, and the start is returned (with ``keep_start=0`` the
     walked-away fit is)."""
-    from pbrbench.inverse.heightfield import HeightField, pixel_normals
-    from pbrbench.inverse.render import HeightFieldScene, ad_mitsuba
-    from pbrbench.inverse.scene import frame_extension, light_dicts
+    from pbrbench.inverse.heightfield import pixel_normals
 
-    mi = ad_mitsuba()
     n = 16
-    lights = light_vectors(groove)
-    hf = HeightField(np.ones((n, n), bool), groove.camera.half_width, extend=frame_extension(groove, n, n))
-    x, _ = hf.corner_xy()
-    z_true = np.abs(x)
-    sc = HeightFieldScene(groove, hf, hf.params_from_corners(z_true), np.full((n, n), 0.9),
-                          light_dicts(mi, groove, lights, "scene"), max_depth=2, spp=64)
-    targets = sc.renders(seed=5)
-    del sc
+    targets, lights, hf, z_true = _groove_targets(groove, n, seed=5)
     mask = np.ones((n, n), bool)
     truth = pixel_normals(z_true, hf.h)
 

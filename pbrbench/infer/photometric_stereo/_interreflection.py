@@ -311,20 +311,19 @@ def shadowed(normals, used, lights, margin: float = 0.25) -> np.ndarray:
                       mask=ok)
     part, _ = ndimage.label(ok)
     rr, cc = np.mgrid[0:h, 0:w]
-    zmax = float(z[ok].max())
+    relief = float(z[ok].max() - z[ok].min())
     for k in range(len(s)):
         hor = float(np.hypot(s[k, 0], s[k, 1]))
         if hor < 1e-9:
             continue            # a source on the axis casts no shadow on a height field seen along it
         dx, dy, tan = s[k, 0] / hor, s[k, 1] / hor, s[k, 2] / hor
-        t_max = min(1.5 * max(h, w), (zmax - float(z[ok].min())) / max(tan, 1e-9) + 1.0)
+        t_max = min(1.5 * max(h, w), relief / max(tan, 1e-9) + 1.0)
         cast = np.zeros((h, w), bool)
         for t in np.arange(1.0, t_max + 1.0, 1.0):
             r = np.rint(rr - t * dy).astype(int)     # rows grow downward: y up is -row
             c = np.rint(cc + t * dx).astype(int)
             ins = (r >= 0) & (r < h) & (c >= 0) & (c < w)
             r, c = np.where(ins, r, 0), np.where(ins, c, 0)
-            same = ins & (part[r, c] == part) & ok
-            cast |= same & (z[r, c] > z + t * tan + margin)
-        out[k] |= cast & ok
+            cast |= ins & (part[r, c] == part) & ok & (z[r, c] > z + t * tan + margin)
+        out[k] |= cast
     return out

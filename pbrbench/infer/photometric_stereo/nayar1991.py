@@ -59,17 +59,15 @@ class InterreflectionResult(PhotometricStereoResult):
     refuted: bool = False
 
 
-def _shadow_light(res, meas, predicted, lights, sel, shape, support: float) -> float:
+def _shadow_light(res, meas, predicted, lights, sel, support: float) -> float:
     """Measured light over predicted interreflection on the measurements in the shadows of the
-    local estimate ``res`` (:func:`._interreflection.shadowed`), NaN where fewer than
-    ``support`` of the valid pixels' measurements are in shadow."""
-    h, w = shape
-    valid = res.valid & np.isin(np.arange(h * w).reshape(h, w), sel)
-    sh = _ir.shadowed(res.normals, valid, lights)
-    n_meas = len(lights) * int(valid.sum())
+    local estimate ``res`` (:func:`._interreflection.shadowed`; its valid pixels lie inside the
+    mask), NaN where fewer than ``support`` of the valid pixels' measurements are in shadow."""
+    sh = _ir.shadowed(res.normals, res.valid, lights)
+    n_meas = len(lights) * int(res.valid.sum())
     if n_meas == 0 or sh.sum() < max(1.0, support * n_meas):
         return float("nan")
-    s = sh.reshape(len(lights), h * w)[:, sel]                  # (K, N) over the masked pixels
+    s = sh.reshape(len(lights), -1)[:, sel]                     # (K, N) over the masked pixels
     pred = float(predicted.sum(axis=-1)[s].sum())
     if pred <= 0:
         return float("nan")
@@ -295,7 +293,7 @@ def photometric_stereo_nayar1991(images, lights, *, mask=None, block: int | None
     for i in range(max_iter):
         fx, n_facets = predict(res)
         if i == 0 and shadow_light_min > 0:
-            ratio = _shadow_light(res, meas, fx, p.s, sel, (h, w), shadow_support)
+            ratio = _shadow_light(res, meas, fx, p.s, sel, shadow_support)
             if ratio < shadow_light_min:        # the premise refuted: the local solve stands
                 return InterreflectionResult(
                     normals=res.normals, albedo=res.albedo, residual=res.residual, n_used=res.n_used,
