@@ -310,7 +310,10 @@ def shadowed(normals, used, lights, margin: float = 0.25) -> np.ndarray:
     z = integrate_lsq(gradients=(np.where(ok, -normals[..., 0] / nz, 0.0), np.where(ok, -normals[..., 1] / nz, 0.0)),
                       mask=ok)
     part, _ = ndimage.label(ok)
-    rr, cc = np.mgrid[0:h, 0:w]
+    pr, pc = np.nonzero(ok)                  # only lit-capable pixels can be in a cast shadow
+    pz, pp = z[pr, pc], part[pr, pc]
+    zmax = np.zeros(int(part.max()) + 1)      # the highest point of each part: no ray rises above it
+    np.maximum.at(zmax, pp, pz)
     relief = float(z[ok].max() - z[ok].min())
     for k in range(len(s)):
         hor = float(np.hypot(s[k, 0], s[k, 1]))
@@ -319,11 +322,18 @@ def shadowed(normals, used, lights, margin: float = 0.25) -> np.ndarray:
         dx, dy, tan = s[k, 0] / hor, s[k, 1] / hor, s[k, 2] / hor
         t_max = min(1.5 * max(h, w), relief / max(tan, 1e-9) + 1.0)
         cast = np.zeros((h, w), bool)
+        live = np.arange(pr.size)            # pixels whose ray is still inside the image, below its part's top, unoccluded
         for t in np.arange(1.0, t_max + 1.0, 1.0):
-            r = np.rint(rr - t * dy).astype(int)     # rows grow downward: y up is -row
-            c = np.rint(cc + t * dx).astype(int)
+            if live.size == 0:
+                break
+            r = np.rint(pr[live] - t * dy).astype(int)     # rows grow downward: y up is -row
+            c = np.rint(pc[live] + t * dx).astype(int)
             ins = (r >= 0) & (r < h) & (c >= 0) & (c < w)
             r, c = np.where(ins, r, 0), np.where(ins, c, 0)
-            cast |= ins & (part[r, c] == part) & ok & (z[r, c] > z + t * tan + margin)
+            level = pz[live] + t * tan + margin
+            hit = ins & (part[r, c] == pp[live]) & (z[r, c] > level)
+            cast[pr[live[hit]], pc[live[hit]]] = True
+            # a ray that left the image never comes back (a straight ground track), nor one above its part's top
+            live = live[ins & ~hit & (level < zmax[pp[live]])]
         out[k] |= cast
     return out

@@ -49,45 +49,65 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
     contribute ``-max(R, 0)``.  Returns ``z, converged, steps, info``; ``info["stalled"]`` is
     True when no damped step lowered the residual (a stationary point of the damped
     linearisation, not a solution).
-    """
-    from scipy.sparse import csr_matrix  # noqa: PLC0415
-    from scipy.sparse.linalg import spsolve_triangular  # noqa: PLC0415
 
+    Only the mask's pixels are unknowns (the others hold 0 and decouple).  The substitution runs
+    over anti-diagonals of the image (a pixel's left and lower neighbours lie on the previous
+    one), each a contiguous block of the unknowns, with the diagonal scaled out first and the
+    lower neighbour's term subtracted before the left one's.  The iteration does not converge
+    on most images (it stops at ``max_iter`` or stalls) and its path depends on the last bit of
+    every step, so this order of operations, and the sums over the full image, are part of the
+    method's definition: they give the same iterates as a general sparse triangular solver.
+    """
     H, W = E.shape
-    n = H * W
+    N = H * W
     max_step = float(max(H, W))
-    ef = E[::-1].ravel()
     mf = m[::-1].ravel()
+    pix = np.flatnonzero(mf)                         # the unknowns' positions in the causal order
+    pix = pix[np.argsort(pix // W + pix % W, kind="stable")]   # grouped by anti-diagonal
+    n = pix.size
+    wave = pix // W + pix % W
+    cuts = np.flatnonzero(np.diff(wave)) + 1
+    blocks = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist(), strict=True))
+    where = np.full(N, n)                            # each pixel's unknown; n: outside the mask (z = 0)
+    where[pix] = np.arange(n)
+    left = np.where(pix % W > 0, where[np.maximum(pix - 1, 0)], n)
+    below = np.where(pix >= W, where[np.maximum(pix - W, 0)], n)
+    has_l, has_b = left < n, below < n
+    ef = E[::-1].ravel()[pix]
     shadow = ef <= 0.0
-    col = np.tile(np.arange(W), H)
-    idx = np.arange(n)
-    has_l = np.zeros(n, bool)
-    has_l[1:] = mf[:-1] & (col[1:] > 0)
-    has_b = np.zeros(n, bool)
-    has_b[W:] = mf[:-W]
-    has_l &= mf
-    has_b &= mf
-    z = np.zeros(n) if init is None else np.where(mf, np.asarray(init, float)[::-1].ravel(), 0.0)
-    # sparsity pattern of the Jacobian: diagonal, left neighbour, neighbour below
-    rows = np.concatenate([idx, idx[has_l], idx[has_b]])
-    cols = np.concatenate([idx, idx[has_l] - 1, idx[has_b] - W])
+    z = np.zeros(n) if init is None else np.asarray(init, float)[::-1].ravel()[pix]
+    ext = np.zeros(n + 1)                            # an unknown's vector and the 0 outside the mask
+    full = np.zeros(N)
+
+    def total(v):
+        # sum of squares over the whole image (0 outside the mask), summed in the image's order
+        full[pix] = v
+        return float(full @ full)
 
     def residual(zv):
-        zl = np.zeros(n)
-        zl[1:] = zv[:-1]
-        zb = np.zeros(n)
-        zb[W:] = zv[:-W]
-        p = zv - np.where(has_l, zl, 0.0)
-        q = zv - np.where(has_b, zb, 0.0)
+        ext[:n] = zv
+        p = zv - ext[left]
+        q = zv - ext[below]
         r, rp, rq = _reflectance(p, q, s)
         f = np.where(shadow, -np.maximum(r, 0.0), ef - r)
         g = np.where(shadow & (r <= 0.0), 0.0, 1.0)
-        return np.where(mf, f, 0.0), rp * g, rq * g
+        return f, rp * g, rq * g
+
+    def solve(dg, rp, rq, b):
+        inv = 1.0 / dg
+        ul = np.zeros(n)
+        ub = np.zeros(n)
+        ul[has_l] = rp[has_l] * inv[left[has_l]]
+        ub[has_b] = rq[has_b] * inv[below[has_b]]
+        y = np.zeros(n + 1)
+        for a0, a1 in blocks:
+            y[a0:a1] = (b[a0:a1] - ub[a0:a1] * y[below[a0:a1]]) - ul[a0:a1] * y[left[a0:a1]]
+        return y[:n] * inv
 
     f, rp, rq = residual(z)
-    cost = float(f @ f)
+    cost = total(f)
     cost0 = cost
-    nm = max(int(mf.sum()), 1)
+    nm = max(n, 1)
     converged = False
     stalled = False
     delta = np.inf
@@ -99,20 +119,17 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
         for mu in mu_schedule:
             dg = d0 + mu * sgn
             dg = np.where(np.abs(dg) < damping, damping * sgn, dg)
-            dg = np.where(mf, dg, 1.0)
-            vals = np.concatenate([dg, rp[has_l], rq[has_b]])
-            J = csr_matrix((vals, (rows, cols)), shape=(n, n))
-            d = np.where(mf, spsolve_triangular(J, -f, lower=True), 0.0)
+            d = solve(dg, rp, rq, -f)
             if not np.all(np.isfinite(d)):
                 continue
             # trust region: no pixel moves by more than the image's size in one step (a near-zero
             # diagonal otherwise gives steps of 1e4 px that still lower the residual)
-            dmax = float(np.abs(d).max())
+            dmax = float(np.abs(d).max()) if n else 0.0
             a = min(1.0, max_step / dmax) if dmax > 0 else 1.0
             for _ in range(n_halvings):
                 zn = z + a * d
                 fn, rpn, rqn = residual(zn)
-                cn = float(fn @ fn)
+                cn = total(fn)
                 if np.isfinite(cn) and cn < cost * (1.0 - 1e-4 * a):
                     accepted = True
                     break
@@ -123,12 +140,15 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
             stalled = True
             break
         steps += 1
-        delta = a * math.sqrt(float(np.sum(d * d)) / nm)
+        full[pix] = d
+        delta = a * math.sqrt(float(np.sum(full * full)) / nm)
         z, f, rp, rq, cost = zn, fn, rpn, rqn, cn
         if delta < tol:
             converged = True
             break
-    zimg = z.reshape(H, W)[::-1]
+    full[:] = 0.0
+    full[pix] = z
+    zimg = full.reshape(H, W)[::-1]
     info = {"final_update": float(delta), "stalled": stalled,
             "residual_rms": math.sqrt(cost / nm), "initial_residual_rms": math.sqrt(cost0 / nm)}
     return np.where(m, zimg, 0.0), converged, steps, info
