@@ -154,6 +154,28 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
     """
     fixed = boundary & m
     pb, qb = _contour_pq(E, s, m, fixed, theta_max)
+    if init is None:
+        P0 = np.where(fixed, pb, 0.0)
+        Q0 = np.where(fixed, qb, 0.0)
+        Z0 = integrate_gradients(P0, Q0, mask=m)
+    else:
+        P0 = np.where(fixed, pb, np.where(m, init[0], 0.0))
+        Q0 = np.where(fixed, qb, np.where(m, init[1], 0.0))
+        Z0 = np.where(m, init[2], 0.0)
+    nf = max(int((m & ~fixed).sum()), 1)
+    # every update reads a pixel of the mask and its 4-neighbours only: the sweeps run on the
+    # mask's bounding box grown by one pixel (the same numbers; the red-black colours keep the
+    # image's parity, and the update norm is summed over the whole image as before)
+    rows, cols = np.nonzero(m)
+    if rows.size:
+        r0, r1 = max(int(rows.min()) - 1, 0), min(int(rows.max()) + 2, E.shape[0])
+        c0, c1 = max(int(cols.min()) - 1, 0), min(int(cols.max()) + 2, E.shape[1])
+    else:
+        r0, r1, c0, c1 = 0, E.shape[0], 0, E.shape[1]
+    box = (slice(r0, r1), slice(c0, c1))
+    full_shape = E.shape
+    E, m, fixed = E[box], m[box], fixed[box]
+    P, Q, Z = P0[box].copy(), Q0[box].copy(), Z0[box].copy()
     free = m & ~fixed
     ex = (m[:, :-1] & m[:, 1:]).astype(float)  # edge indicators as weights
     ey = (m[:-1, :] & m[1:, :]).astype(float)
@@ -166,22 +188,14 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
     nn = nx + ny
     shadow = E <= 0.0
     ii, jj = np.indices(E.shape)
-    red = (ii + jj) % 2 == 0
+    red = (ii + jj + r0 + c0) % 2 == 0
     colours = (free & red, free & ~red)
     zcol = (m & red, m & ~red)
     nzk = np.maximum(nn, 1.0)
-    if init is None:
-        P = np.where(fixed, pb, 0.0)
-        Q = np.where(fixed, qb, 0.0)
-        Z = integrate_gradients(P, Q, mask=m)
-    else:
-        P = np.where(fixed, pb, np.where(m, init[0], 0.0))
-        Q = np.where(fixed, qb, np.where(m, init[1], 0.0))
-        Z = np.where(m, init[2], 0.0)
+    upd = np.zeros(full_shape)
     lam_list = np.geomspace(lam, lam_min, n_stages) if (stages and n_stages > 1) else np.array([lam_min])
     lam_list = lam_list[-max_iter:]
     per_stage = max(1, max_iter // len(lam_list))
-    nf = max(int(free.sum()), 1)
     sweeps = 0
     delta = np.inf
     converged = False
@@ -224,7 +238,8 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
                 dq = np.where(col, omega * dq, 0.0)
                 P += dp
                 Q += dq
-                dsum += float(np.sum(dp * dp + dq * dq))
+                upd[box] = dp * dp + dq * dq
+                dsum += float(np.sum(upd))
             # z: Gauss-Seidel on the Poisson equation with targets gx = (p_a + p_b)/2, gy = -(q_a + q_b)/2
             gx = ex * 0.5 * (P[:, :-1] + P[:, 1:])
             gy = ey * -0.5 * (Q[:-1, :] + Q[1:, :])
@@ -239,7 +254,8 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
             if last and delta < tol:
                 converged = True
                 break
-    return P, Q, Z, converged, sweeps, delta
+    P0[box], Q0[box], Z0[box] = P, Q, Z
+    return P0, Q0, Z0, converged, sweeps, delta
 
 
 def _horn_pyramid(E, s, m, *, levels, coarse_iter, **kw):
