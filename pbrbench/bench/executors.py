@@ -94,6 +94,8 @@ def quiet_distributed(level: int = logging.CRITICAL):
 
 def _plugin():
     """This Dask worker's pbrbench plugin, or None outside a worker."""
+    if "distributed" not in sys.modules:
+        return None          # a Dask worker has imported distributed; a pool or local process need not (0.4 s)
     try:
         from distributed import get_worker
 
