@@ -134,7 +134,7 @@ def _nb_sum(a, ex, ey):
 
 
 def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_stages, init=None,
-          stages=True, omega=1.7):
+          stages=True, omega=1.7, crop=True):
     """Horn's (1989) iterative scheme on one grid: red-black Gauss-Seidel on (p, q), then on z.
 
     Discrete energy (x-edges ``a -> b`` join horizontal neighbours, y-edges vertical ones, both
@@ -150,6 +150,7 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
     red pixels then black ones, then over each pixel's ``z`` (a Gauss-Seidel sweep of the Poisson
     equation ``L z = div (p, q)``).  Occluding-contour pixels keep their gradient fixed
     (Dirichlet).  Attached-shadow pixels (``E = 0``) contribute only where ``R > 0``.
+    ``crop=False`` sweeps the whole image (the same numbers, slower: the reference for the tests).
     Returns ``p, q, z, converged, sweeps, last RMS (p, q) update``.
     """
     fixed = boundary & m
@@ -167,7 +168,7 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
     # mask's bounding box grown by one pixel (the same numbers; the red-black colours keep the
     # image's parity, and the update norm is summed over the whole image as before)
     rows, cols = np.nonzero(m)
-    if rows.size:
+    if rows.size and crop:
         r0, r1 = max(int(rows.min()) - 1, 0), min(int(rows.max()) + 2, E.shape[0])
         c0, c1 = max(int(cols.min()) - 1, 0), min(int(cols.max()) + 2, E.shape[1])
     else:

@@ -248,6 +248,57 @@ def test_shadowed_matches_the_closed_form_of_a_deep_groove():
     assert not sh[2:].any() and not sh[4:].any()      # sources along the groove or above the faces: none
 
 
+def _marched_everywhere(normals, used, lights, margin=0.25):
+    """shadowed()'s cast shadows, every ray marched over its whole length at every pixel."""
+    from scipy import ndimage
+
+    from pbrbench.infer.integration import integrate_lsq
+
+    h, w = used.shape
+    s = lights / np.linalg.norm(lights, axis=1, keepdims=True)
+    ok = used & (normals[..., 2] > 0)
+    nz = np.maximum(normals[..., 2], ir.MIN_NZ)
+    z = integrate_lsq(gradients=(np.where(ok, -normals[..., 0] / nz, 0.0), np.where(ok, -normals[..., 1] / nz, 0.0)),
+                      mask=ok)
+    part, _ = ndimage.label(ok)
+    rr, cc = np.mgrid[0:h, 0:w]
+    relief = float(z[ok].max() - z[ok].min())
+    out = (np.einsum("hwc,kc->khw", normals, s) <= 0.0) & used[None]
+    for k in range(len(s)):
+        hor = float(np.hypot(s[k, 0], s[k, 1]))
+        if hor < 1e-9:
+            continue
+        dx, dy, tan = s[k, 0] / hor, s[k, 1] / hor, s[k, 2] / hor
+        for t in np.arange(1.0, min(1.5 * max(h, w), relief / max(tan, 1e-9) + 1.0) + 1.0, 1.0):
+            r, c = np.rint(rr - t * dy).astype(int), np.rint(cc + t * dx).astype(int)
+            ins = (r >= 0) & (r < h) & (c >= 0) & (c < w)
+            r, c = np.where(ins, r, 0), np.where(ins, c, 0)
+            out[k] |= ins & (part[r, c] == part) & ok & (z[r, c] > z + t * tan + margin)
+    return out
+
+
+def test_shadowed_marches_only_undecided_rays_with_the_same_result():
+    # shadowed() drops a ray once it leaves the image, rises above its part's top or is occluded;
+    # on a random relief of two parts under low and high sources the shadows are those of
+    # marching every ray to its end
+    rng = np.random.default_rng(5)
+    size = 48
+    y, x = np.mgrid[0:size, 0:size] / size
+    z = sum(rng.uniform(0.05, 0.2) * np.sin(2 * np.pi * (rng.uniform(1, 3) * x + rng.uniform(1, 3) * y + rng.uniform(0, 6)))
+            for _ in range(4))
+    gy, gx = np.gradient(z * size)
+    n = np.stack([-gx, gy, np.ones_like(z)], -1)          # rows grow downward: y up is -row
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    used = np.ones((size, size), bool)
+    used[:, 22:26] = False                                  # two parts
+    lights = np.array([[1.0, 0.2, 0.3], [-0.4, 1.0, 0.5], [0.3, -0.2, 2.0], [-1.0, -1.0, 0.15], [0.0, 0.0, 1.0]])
+    got = ir.shadowed(n, used, lights)
+    want = _marched_everywhere(n, used, lights)
+    assert np.array_equal(got, want)
+    cast = got & ~(np.einsum("hwc,kc->khw", n, lights / np.linalg.norm(lights, axis=1, keepdims=True)) <= 0)
+    assert cast[0].sum() > 20 and cast[3].sum() > 20      # the relief casts shadows under the low sources
+
+
 def test_premise_refuted_on_direct_images_returns_the_local_solve():
     # direct light only: the deep groove's shadows are black, where the kernel of the local
     # estimate predicts interreflected light; without the test the method removes light that is not
