@@ -13,6 +13,7 @@ shadows") come from this script.  A scene missing from the cache is rendered.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 import numpy as np
@@ -25,43 +26,29 @@ def main(argv=None) -> int:
     ap.add_argument("scenes", nargs="*", default=SCENES)
     ap.add_argument("--cache", default=None, help="render cache (default: pbrbench's)")
     a = ap.parse_args(argv)
-    from pbrbench.bench.source import GroundTruthSource
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # the helper beside this script
+    from _ps_inputs import ps_inputs
+
     from pbrbench.infer.photometric_stereo import (
         photometric_stereo_nayar1991,
         photometric_stereo_woodham1980,
     )
     from pbrbench.metrics.normals import normal_scores
-    from pbrbench.quality import get_quality
-    from pbrbench.render.cache import RenderCache
-    from pbrbench.scene.load import SceneLibrary
-    from pbrbench.settings import Settings
-    from pbrbench.tasks.base import Job
-    from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 
-    lib = SceneLibrary()
-    task = PhotometricStereoTask().bind(lib)
-    src = GroundTruthSource(get_quality("standard"), cache=RenderCache(a.cache or Settings.from_env().cache), library=lib)
-    specs = src.specs(a.scenes)
-    for name in a.scenes:
-        gt = src.load(specs[name])
-        params = task._params(lib.spec(name))
-        lights = np.asarray(dict(params)["lights"], float)
-        domain, n_true = task._domain(gt, lights), gt["normals"].astype(float)
-        for cond in ("local", "global", "local+noise0.01"):
-            images = task._inputs(Job(task.name, name, cond, params), gt, 0)
-            w = photometric_stereo_woodham1980(images, lights, mask=gt.mask)
-            y = photometric_stereo_nayar1991(images, lights, mask=gt.mask, shadow_light_min=0)
-            both = w.valid & y.valid
-            scale = float(np.median(images.max(axis=0)[both]))
+    for name, cond, images, lights, mask, domain, n_true in ps_inputs(a.scenes, a.cache):
+        w = photometric_stereo_woodham1980(images, lights, mask=mask)
+        y = photometric_stereo_nayar1991(images, lights, mask=mask, shadow_light_min=0)
+        both = w.valid & y.valid
+        scale = float(np.median(images.max(axis=0)[both]))
 
-            def rms(r, _b=both, _s=scale):
-                return float(np.sqrt(np.mean(r.residual[_b] ** 2))) / _s
+        def rms(r, _b=both, _s=scale):
+            return float(np.sqrt(np.mean(r.residual[_b] ** 2))) / _s
 
-            def err(r, _n=n_true, _d=domain):
-                return normal_scores(r.normals, _n, _d, r.valid)[0]["normal_mean_deg"]
+        def err(r, _n=n_true, _d=domain):
+            return normal_scores(r.normals, _n, _d, r.valid)[0]["normal_mean_deg"]
 
-            print(f"{name:22s} {cond:16s} woodham1980 {err(w):6.2f} deg residual {rms(w):.5f} | nayar1991 "
-                  f"{err(y):6.2f} deg residual {rms(y):.5f}, changes {np.round(y.changes, 3).tolist()}", flush=True)
+        print(f"{name:22s} {cond:16s} woodham1980 {err(w):6.2f} deg residual {rms(w):.5f} | nayar1991 "
+              f"{err(y):6.2f} deg residual {rms(y):.5f}, changes {np.round(y.changes, 3).tolist()}", flush=True)
     return 0
 
 

@@ -24,6 +24,7 @@ Nothing is fetched.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 import numpy as np
@@ -66,7 +67,7 @@ def normals_from_lowrank(images: np.ndarray, lights: np.ndarray, mask: np.ndarra
 
 
 def bunny(data_dir: str) -> None:
-    sys.path.insert(0, __file__.rsplit("/", 1)[0])
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     from rps_bunny import load
 
     from pbrbench.infer.photometric_stereo import METHODS
@@ -85,35 +86,21 @@ def bunny(data_dir: str) -> None:
 
 
 def renders(scenes, cache) -> None:
-    from pbrbench.bench.source import GroundTruthSource
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))   # the helper beside this script
+    from _ps_inputs import ps_inputs
+
     from pbrbench.infer.photometric_stereo import METHODS
     from pbrbench.metrics.normals import normal_scores
-    from pbrbench.quality import get_quality
-    from pbrbench.render.cache import RenderCache
-    from pbrbench.scene.load import SceneLibrary
-    from pbrbench.tasks.base import Job
-    from pbrbench.tasks.photometric_stereo import PhotometricStereoTask
 
-    task = PhotometricStereoTask()
-    lib = SceneLibrary()
-    task = task.bind(lib)
-    src = GroundTruthSource(get_quality("standard"), cache=RenderCache(cache), library=lib)
-    specs = src.specs(scenes)
-    for name in scenes:
-        gt = src.load(specs[name])
-        params = task._params(lib.spec(name))
-        lights = np.asarray(dict(params)["lights"], float)
-        domain, n_true = task._domain(gt, lights), gt["normals"].astype(float)
-        for cond in ("local", "global", "local+noise0.01"):
-            images = task._inputs(Job(task.name, name, cond, params), gt, 0)
-            grey = images if images.ndim == 3 else images.mean(-1)
-            n, rank = normals_from_lowrank(grey, lights, gt.mask)
-            ok = gt.mask & (np.linalg.norm(n, axis=-1) > 0)
-            row = [f"shadows as data {normal_scores(n, n_true, domain, ok)[0]['normal_mean_deg']:6.2f} (rank {rank})"]
-            for a in ("woodham1980", "wu2010"):
-                r = METHODS[a](images, lights, mask=gt.mask)
-                row.append(f"{a} {normal_scores(r.normals, n_true, domain, r.valid)[0]['normal_mean_deg']:6.2f}")
-            print(f"{name:22s} {cond:16s} " + "  ".join(row), flush=True)
+    for name, cond, images, lights, mask, domain, n_true in ps_inputs(scenes, cache):
+        grey = images if images.ndim == 3 else images.mean(-1)
+        n, rank = normals_from_lowrank(grey, lights, mask)
+        ok = mask & (np.linalg.norm(n, axis=-1) > 0)
+        row = [f"shadows as data {normal_scores(n, n_true, domain, ok)[0]['normal_mean_deg']:6.2f} (rank {rank})"]
+        for a in ("woodham1980", "wu2010"):
+            r = METHODS[a](images, lights, mask=mask)
+            row.append(f"{a} {normal_scores(r.normals, n_true, domain, r.valid)[0]['normal_mean_deg']:6.2f}")
+        print(f"{name:22s} {cond:16s} " + "  ".join(row), flush=True)
 
 
 def main(argv=None) -> int:
@@ -125,9 +112,7 @@ def main(argv=None) -> int:
     if a.bunny:
         bunny(a.bunny)
     if a.scenes:
-        from pbrbench.settings import Settings
-
-        renders(a.scenes, a.cache or Settings.from_env().cache)
+        renders(a.scenes, a.cache)
     return 0
 
 
