@@ -8,6 +8,6 @@ from setuptools import find_namespace_packages, setup
 setup(
     packages=find_namespace_packages(include=["pbrbench", "pbrbench.*"], exclude=["*.__pycache__"]) + ["pbrbench.scenes"],
     package_dir={"pbrbench.scenes": "scenes"},
-    package_data={"pbrbench": ["report/templates/*.html", "report/templates/*.css"],
+    package_data={"pbrbench": ["report/templates/*.html", "report/templates/*.css", "bench/noise_scales.json"],
                   "pbrbench.scenes": ["*.toml", "*.md", "*.npy"]},
 )

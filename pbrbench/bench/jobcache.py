@@ -29,12 +29,15 @@ FORMAT = 1
 
 @functools.lru_cache(maxsize=1)
 def code_hash() -> str:
-    """sha256 of every ``.py`` file of the pbrbench package (path and bytes)."""
+    """sha256 of every ``.py`` file of the pbrbench package (path and bytes) and of its noise scales."""
     root = Path(__file__).resolve().parents[1]
     h = hashlib.sha256()
     for p in sorted(root.rglob("*.py")):
         h.update(str(p.relative_to(root)).encode())
         h.update(p.read_bytes())
+    scales = root / "bench" / "noise_scales.json"   # the standard errors it gives replace replicates
+    if scales.exists():
+        h.update(scales.read_bytes())
     from pbrbench.versions import version
 
     for pkg in ("numpy", "scipy"):

@@ -13,6 +13,16 @@ Where the job's inputs also depend on the seed (injected camera noise, random pi
 on the full ground truth with other seeds, ``v_{n,k}``, and the sample variance of ``v`` and those
 values (:data:`NOISE_SEEDS` degrees of freedom) is added.
 
+Noise scales measured over independent render seeds (:data:`SCALES_FILE`, written by
+``scripts/noise_scales.py``) replace the replicates of the algorithms they cover: where every
+score of an algorithm on a job has an entry for its task, scene, condition, scene hash, algorithm
+version and quality (and the job's inputs do not depend on the seed), that algorithm is not run
+on the replicates, and each score's standard error is the entry's standard deviation over the
+seeds, on its degrees of freedom (seeds - 1); its bias is not estimated (NaN).  Used for the
+inverse-rendering methods, each call of which is a series of Mitsuba renders; anything the
+table does not name exactly (another version, scene file, render seed or quality) falls back to
+the replicates.
+
 The replicate values are stored with the score (``replicates``, ``rep_noise``), so a difference
 between two conditions rendered from the same ground truth (``global - local`` of one scene) gets
 its own paired jackknife, which accounts for their correlation (:func:`pbrbench.uncertainty.paired`).
@@ -22,7 +32,13 @@ independently rendered seeds.
 
 from __future__ import annotations
 
+import functools
+import json
+from pathlib import Path
+
 from pbrbench.uncertainty import estimate
+
+SCALES_FILE = Path(__file__).with_name("noise_scales.json")
 
 NOISE_SEED_OFFSET = 1_000_003     # other seed k (1, 2, ...) of a seed-dependent job: seed + k * NOISE_SEED_OFFSET
 NOISE_SEEDS = 3                   # other seeds of a seed-dependent job: the seed's part of its SE on 3 dof
@@ -45,7 +61,39 @@ def _values(scores) -> dict:
     return out
 
 
-def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None) -> dict[str, dict]:
+@functools.lru_cache(maxsize=4)
+def noise_scales(path: str = str(SCALES_FILE)) -> dict:
+    """``{(task, scene, condition, scene_hash, algorithm, algorithm_version, metric, quality): (sd,
+    dof)}`` from the scales file (empty when it is missing)."""
+    try:
+        with open(path) as f:
+            entries = json.load(f).get("entries", [])
+    except FileNotFoundError:
+        return {}
+    return {(e["task"], e["scene"], e["condition"], e["scene_hash"], e["algorithm"], e["algorithm_version"],
+             e["metric"], e["quality"]): (float(e["sd"]), float(e["dof"])) for e in entries}
+
+
+def _scale_key(d: dict, quality_name: str) -> tuple:
+    return (d["task"], d["scene"], d["condition"], d["scene_hash"], d["algorithm"], d.get("algorithm_version", ""),
+            d["metric"], quality_name)
+
+
+def scaled_scores(full, quality, scales: dict | None = None) -> dict:
+    """``{score key: (sd, dof)}`` of the scores in ``full`` whose algorithm has a noise scale for
+    every one of its scores on the job (module docstring)."""
+    scales = noise_scales() if scales is None else scales
+    if not scales or full is None or isinstance(full, dict):
+        return {}
+    qn = getattr(quality, "name", str(quality))
+    by_alg: dict = {}
+    for s in full:
+        d = s.as_dict() if hasattr(s, "as_dict") else s
+        by_alg.setdefault(d["algorithm"], []).append((score_key(d), scales.get(_scale_key(d, qn))))
+    return {k: v for rows in by_alg.values() if all(v is not None for _, v in rows) for k, v in rows}
+
+
+def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None, scales=None) -> dict[str, dict]:
     """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: [v_n1, ..., v_nK]}}`` for the job's
     scores (keys ``(scene, algorithm, metric)``); parts that cannot be computed (a ground truth
     without its sample groups, a job whose inputs do not depend on the seed) are absent.
@@ -55,9 +103,15 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
     replicate that changes none of those arrays is the same input, and its values are ``full``'s
     without scoring it again (a job on analytic or noise-free passes costs one scoring)."""
     out: dict[str, dict] = {}
+    algorithms = list(algorithms)
+    scaled = {} if task.seed_dependent(job) else scaled_scores(full, quality, scales)
+    if scaled:
+        # the algorithms whose standard errors come from the scales are not run on the replicates
+        done = {a for (_, a, _) in scaled}
+        algorithms = [a for a in algorithms if a.name not in done]
+        out["scales"] = scaled
     if full is not None and not isinstance(full, dict):
         full = _values(full)
-    algorithms = list(algorithms)
 
     def _drop_failed(vals):
         # a plugin that failed (timed out, crashed, raised) is not called again for this job: its
@@ -98,6 +152,11 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
     ``unstable`` filled in."""
     for s in scores:
         k = score_key(s)
+        scale = reps.get("scales", {}).get(k)
+        if scale is not None:     # the standard error over independent render seeds (module docstring)
+            s.update(replicates=None, rep_noise=None, uncertainty=scale[0], dof=scale[1], bias=float("nan"),
+                     unstable=None)
+            continue
         r = reps.get("replicates", {}).get(k)
         s["replicates"] = list(r) if r is not None else None
         n = reps.get("rep_noise", {}).get(k)

@@ -1,0 +1,82 @@
+"""Measure the noise scales of the inverse-rendering scores over independent render seeds.
+
+    python scripts/noise_scales.py --seeds 8 [--cache DIR] [--out pbrbench/bench/noise_scales.json]
+
+For every standard-quality job on which a scene-interface algorithm (inverse rendering) runs, the
+job's scene is rendered with each render seed ``1 .. --seeds`` (every scene file's
+``render.seed`` offset by it, as ``pbrbench run --render-seed``), the algorithm is scored on it
+as the benchmark scores it (``run_job``, algorithm seed 0), and the sample standard deviation of
+each metric over the seeds is written with its degrees of freedom (seeds - 1), the algorithm's
+version, the scene's content hash at render seed 0 and the quality.  ``pbrbench run`` then takes
+those scores' standard errors from this table instead of re-running the algorithm on the four
+delete-one-group replicates (:mod:`pbrbench.bench.uncertainty`, ``docs/uncertainty.md``).  The
+table is valid only for the algorithm version and scene hash it names; anything else falls back
+to the replicates.  Nothing is fetched; renders missing from the cache are made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seeds", type=int, default=8, help="independent render seeds 1 .. N (>= 3)")
+    ap.add_argument("--cache", default=None, help="render cache (default: pbrbench's)")
+    ap.add_argument("--out", default="pbrbench/bench/noise_scales.json")
+    a = ap.parse_args(argv)
+    if a.seeds < 3:
+        ap.error("--seeds: give at least 3 render seeds")
+    import numpy as np
+
+    from pbrbench.bench.plan import load_tasks, plan
+    from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.quality import get_quality
+    from pbrbench.registry import builtin_registry
+    from pbrbench.render.cache import RenderCache
+    from pbrbench.scene.load import SceneLibrary
+    from pbrbench.settings import Settings
+
+    q = get_quality("standard")
+    lib = SceneLibrary()
+    tasks = {n: t.bind(lib) for n, t in load_tasks(["photometric_stereo"]).items()}
+    task = tasks["photometric_stereo"]
+    algs = [x for x in builtin_registry(tasks).for_task("photometric_stereo") if x.interface == "scene"]
+    cache = RenderCache(a.cache or Settings.from_env().cache)
+    jobs = [j for j in plan(tasks, q) if not j.extra_scenes and j.param("plot") is None   # scored jobs, not figures
+            and any(x.applies(j.condition) and task._inverse_applies(j, q) and x.applies_to_job(j, q) for x in algs)]
+    src0 = GroundTruthSource(q, cache=cache, library=lib)
+    entries = []
+    for job in jobs:
+        spec0 = src0.specs([job.scene])[job.scene]
+        hash0 = str(src0.load(spec0).meta["scene_hash"])
+        values: dict = {}
+        for s in range(1, a.seeds + 1):
+            src = GroundTruthSource(q, cache=cache, library=lib, render_seed=s)
+            gt = src.load(src.specs([job.scene])[job.scene])
+            t0 = time.perf_counter()
+            res = task.run_job(job, {job.scene: gt}, seed=0, algorithms=algs, quality=q)
+            for sc in res.scores:
+                values.setdefault((sc.algorithm, sc.algorithm_version, sc.metric), []).append(sc.value)
+            print(f"{job.scene} {job.condition} render seed {s}: {time.perf_counter() - t0:.1f} s", file=sys.stderr, flush=True)
+        for (alg, version, metric), v in sorted(values.items()):
+            if len(v) != a.seeds or not all(math.isfinite(x) for x in v):
+                continue
+            entries.append({"task": job.task, "scene": job.scene, "condition": job.condition, "scene_hash": hash0,
+                            "algorithm": alg, "algorithm_version": version, "metric": metric,
+                            "quality": q.name, "sd": float(np.std(v, ddof=1)), "dof": a.seeds - 1,
+                            "mean": float(np.mean(v)), "render_seeds": list(range(1, a.seeds + 1))})
+    with open(a.out, "w") as f:
+        json.dump({"about": "standard errors over independent render seeds (scripts/noise_scales.py)",
+                   "entries": entries}, f, indent=1)
+        f.write("\n")
+    print(f"{len(entries)} scales of {len(jobs)} job(s) written to {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,93 @@
+"""Noise scales over independent render seeds replace the replicates of the algorithms they cover
+(``pbrbench.bench.uncertainty``: ``scaled_scores``, ``replicate_scores``, ``attach``)."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+
+from pbrbench.bench.uncertainty import SCALES_FILE, attach, noise_scales, replicate_scores
+from pbrbench.quality import get_quality
+from pbrbench.registry import Algorithm, builtin_registry
+from pbrbench.tasks.base import JobResult
+from pbrbench.tasks.common.scoring import ScoreBook
+from tests.bench.test_uncertainty import ErrorTask, noisy_gt
+
+METRICS = ("height_rmse", "height_mae")
+
+
+class TwoAlgorithms(ErrorTask):
+    """Two algorithms on one noisy image; records which algorithms each call scored."""
+
+    calls: list
+
+    def builtin_algorithms(self):
+        return [Algorithm("cheap", self.name, lambda img: img), Algorithm("costly", self.name, lambda img: 2 * img)]
+
+    def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
+        self.calls.append(sorted(a.name for a in algorithms))
+        gt = gts[job.scene]
+        book = ScoreBook(job, "h", algorithms)
+        for alg in algorithms:
+            d = alg(gt["radiance"].astype(float)) - gt["albedo"]
+            book.add(alg.name, {"height_rmse": float(np.sqrt(np.mean(d * d))), "height_mae": float(np.mean(np.abs(d)))},
+                     0.0)
+        return JobResult(job, scores=book.scores)
+
+
+def _setup(seed_dependent=False):
+    task = TwoAlgorithms()
+    task.calls = []
+    task.seed_dependent = lambda job: seed_dependent
+    algs = builtin_registry({task.name: task}).for_task(task.name)
+    gts = {"s": noisy_gt(np.random.default_rng(2).uniform(0.2, 1.0, (8, 8, 3)), 0.05, np.random.default_rng(3))}
+    job = task.jobs(None)[0]
+    res = task.run_job(job, gts, algorithms=algs)
+    version = {a.name: a.full_version for a in algs}["costly"]
+    return task, algs, gts, job, res, version
+
+
+def _table(version, metrics=METRICS, scene_hash="h"):
+    return {("err", "s", "global", scene_hash, "costly", version, m, "draft"): (0.25, 7.0) for m in metrics}
+
+
+def test_a_covered_algorithm_is_not_rerun_and_takes_the_seed_scale():
+    task, algs, gts, job, res, version = _setup()
+    reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores,
+                            scales=_table(version))
+    assert task.calls[1:] == [["cheap"]] * 4          # the four replicates score the other algorithm only
+    scores = attach([s.as_dict() for s in res.scores], reps)
+    for s in scores:
+        if s["algorithm"] == "costly":
+            assert (s["uncertainty"], s["dof"], s["replicates"]) == (0.25, 7.0, None) and math.isnan(s["bias"])
+        else:
+            assert s["dof"] == 3 and len(s["replicates"]) == 4 and 0 < s["uncertainty"] < 0.05
+
+
+def test_a_partial_or_stale_table_falls_back_to_the_replicates():
+    for table in (lambda v: _table(v, metrics=METRICS[:1]),     # one metric without a scale
+                  lambda v: _table("other-version"),            # another version of the algorithm
+                  lambda v: _table(v, scene_hash="changed")):   # another scene file
+        task, algs, gts, job, res, version = _setup()
+        reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"),
+                                full=res.scores, scales=table(version))
+        assert task.calls[1:] == [["cheap", "costly"]] * 4
+        assert all(s["dof"] == 3 for s in attach([s.as_dict() for s in res.scores], reps))
+
+
+def test_a_seed_dependent_job_ignores_the_table():
+    # the seeds' spread was measured on noise-free inputs: camera noise is not in it
+    task, algs, gts, job, res, version = _setup(seed_dependent=True)
+    replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores,
+                     scales=_table(version))
+    assert ["cheap", "costly"] in task.calls[1:5] and ["cheap"] not in task.calls
+
+
+def test_the_committed_table_is_well_formed():
+    entries = json.loads(SCALES_FILE.read_text())["entries"]
+    assert entries and len(noise_scales()) == len(entries)          # one entry per key
+    for e in entries:
+        assert e["sd"] >= 0 and e["dof"] == len(e["render_seeds"]) - 1 >= 3 and 0 not in e["render_seeds"]
+        assert e["quality"] == "standard" and len(e["scene_hash"]) == 64
