@@ -98,8 +98,9 @@ NOISE = 0.01
 INVERSE_FAMILIES = ("ps_groove", "ps_cup", "ps_cap")   # concave: where every local method is biased
 SHORT_INVERSE_FAMILIES = ("ps_groove",)
 INVERSE_APPLIES = ("global", "local")  # the transports the methods model (not area sources)
-# where the benchmark runs them: global alone (five calls of 1.5-2 min each per job: the images and the four delete-one-group replicates;
-# their local results are measured in docs/inverse.md)
+# where the benchmark runs them: global alone (at standard one call per job, its standard errors from the noise scales
+# over render seeds, pbrbench/bench/noise_scales.json; elsewhere five: the images and the four delete-one-group
+# replicates; their local results are measured in docs/inverse.md)
 INVERSE_CONDITIONS = ("global",)
 SHORT_INVERSE_CONDITIONS = ("global",)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
@@ -205,8 +206,10 @@ class PhotometricStereoTask(Task):
                           budgets={"draft": {"iterations": (10,), "spp": 8, "spp_grad": 2, "lr_height": 0.005}},
                           cost_note="analysis by synthesis: Adam over a height field and an albedo texture, each "
                                     "iteration a Mitsuba render of every light and its gradient (about 47 M camera "
-                                    "paths per call at standard), called five times per job (the images and the "
-                                    "four delete-one-group replicates); run on three scenes only (docs/inverse.md)")
+                                    "paths per call at standard), called once per job at standard (its standard errors "
+                                    "from eight independent render seeds, docs/uncertainty.md) and five times at draft "
+                                    "(the images and the four delete-one-group replicates); run on three scenes only "
+                                    "(docs/inverse.md)")
                 for n, fn in INVERSE.items()]
         return out
 
