@@ -35,10 +35,11 @@ def code_hash() -> str:
     for p in sorted(root.rglob("*.py")):
         h.update(str(p.relative_to(root)).encode())
         h.update(p.read_bytes())
-    scales = root / "bench" / "noise_scales.json"   # the standard errors it gives replace replicates
-    if scales.exists():
-        h.update(scales.read_bytes())
+    from pbrbench.bench.uncertainty import SCALES_FILE
     from pbrbench.versions import version
+
+    if SCALES_FILE.exists():     # the standard errors it gives replace replicates
+        h.update(SCALES_FILE.read_bytes())
 
     for pkg in ("numpy", "scipy"):
         if version(pkg) is not None:

@@ -104,7 +104,8 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
     without scoring it again (a job on analytic or noise-free passes costs one scoring)."""
     out: dict[str, dict] = {}
     algorithms = list(algorithms)
-    scaled = {} if task.seed_dependent(job) else scaled_scores(full, quality, scales)
+    seed_dependent = task.seed_dependent(job)
+    scaled = {} if seed_dependent else scaled_scores(full, quality, scales)
     if scaled:
         # the algorithms whose standard errors come from the scales are not run on the replicates
         done = {a for (_, a, _) in scaled}
@@ -135,7 +136,7 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
             for k, v in vals.items():
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
-    if task.seed_dependent(job):
+    if seed_dependent:
         noise: dict = {}
         seeds = noise_seeds(seed)
         for k, sk in enumerate(seeds):

@@ -41,6 +41,31 @@ def _svt(X, tau):
     return (U * f) @ (U.T @ X), int(keep.sum())
 
 
+def inexact_alm(D, observed, lam: float, n_iter: int, tol: float):
+    r"""``(A, E, rank)``: ``min ||A||_* + lam ||E||_1`` s.t. ``P_observed(D) = P_observed(A + E)``
+    by the inexact augmented Lagrange multiplier method (Lin, Chen & Ma 2010), ``D`` (K, N) not
+    all zero; ``E`` is soft-thresholded on the observed entries and free (the completion)
+    elsewhere; stops after ``n_iter`` iterations or when ``||D - A - E||_F / ||D||_F < tol``."""
+    norm_d = np.linalg.norm(D)
+    two = np.sqrt(np.linalg.eigvalsh(D @ D.T)[-1])
+    mu = 1.25 / two
+    mu_max = mu * 1e7
+    rho = 1.5
+    Y = D / max(two, np.abs(D).max() / lam)
+    E = np.zeros_like(D)
+    A, rank = np.zeros_like(D), 0
+    for _ in range(n_iter):
+        A, rank = _svt(D - E + Y / mu, 1.0 / mu)
+        T = D - A + Y / mu
+        E = np.where(observed, np.sign(T) * np.maximum(np.abs(T) - lam / mu, 0.0), T)
+        Z = D - A - E
+        Y += mu * Z
+        mu = min(mu * rho, mu_max)
+        if np.linalg.norm(Z) / norm_d < tol:
+            break
+    return A, E, rank
+
+
 @docstring(DOCS)
 def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, shadow_threshold: float = 0.01,
                               saturation: float | None = None, min_lights: int = 3, sparsity: float | None = None,
@@ -110,23 +135,8 @@ def photometric_stereo_wu2010(images, lights, *, mask=None, intensities=None, sh
     scale = np.maximum(jsum.max(axis=0), np.finfo(float).tiny)
     D = np.where(used, jsum, 0.0)  # the measurements as they are (Wu et al.; a per-pixel
     # normalisation to one albedo gave dark pixels the weight of bright ones: version 2)
-    norm_d = np.linalg.norm(D)
-    if norm_d > 0:
-        two = np.sqrt(np.linalg.eigvalsh(D @ D.T)[-1])
-        mu = 1.25 / two
-        mu_max = mu * 1e7
-        rho = 1.5
-        Y = D / max(two, np.abs(D).max() / lam)
-        E = np.zeros_like(D)
-        for _ in range(n_iter):
-            A, _ = _svt(D - E + Y / mu, 1.0 / mu)
-            T = D - A + Y / mu
-            E = np.where(used, np.sign(T) * np.maximum(np.abs(T) - lam / mu, 0.0), T)
-            Z = D - A - E
-            Y += mu * Z
-            mu = min(mu * rho, mu_max)
-            if np.linalg.norm(Z) / norm_d < tol:
-                break
+    if np.linalg.norm(D) > 0:
+        _, E, _ = inexact_alm(D, used, lam, n_iter, tol)
         # errors: |E| (relative to the pixel's brightest) beyond 5 robust standard deviations of
         # the small entries (the noise the soft threshold left in E), at least 1e-3
         E = E / scale

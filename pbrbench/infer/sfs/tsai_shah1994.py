@@ -63,9 +63,10 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
     max_step = float(max(H, W))
     mf = m[::-1].ravel()
     pix = np.flatnonzero(mf)                         # the unknowns' positions in the causal order
-    pix = pix[np.argsort(pix // W + pix % W, kind="stable")]   # grouped by anti-diagonal
+    wave = pix // W + pix % W                        # each one's anti-diagonal
+    order = np.argsort(wave, kind="stable")
+    pix, wave = pix[order], wave[order]              # grouped by anti-diagonal
     n = pix.size
-    wave = pix // W + pix % W
     cuts = np.flatnonzero(np.diff(wave)) + 1
     blocks = list(zip(np.r_[0, cuts].tolist(), np.r_[cuts, n].tolist(), strict=True))
     where = np.full(N, n)                            # each pixel's unknown; n: outside the mask (z = 0)
@@ -146,8 +147,7 @@ def _tsai_shah(E, s, m, *, max_iter, tol, damping, init, mu_schedule=(0.0, 0.1, 
         if delta < tol:
             converged = True
             break
-    full[:] = 0.0
-    full[pix] = z
+    full[pix] = z                                    # (only the unknowns' places are ever written)
     zimg = full.reshape(H, W)[::-1]
     info = {"final_update": float(delta), "stalled": stalled,
             "residual_rms": math.sqrt(cost / nm), "initial_residual_rms": math.sqrt(cost0 / nm)}
