@@ -358,12 +358,17 @@ def unexposed_bounds(Zt: np.ndarray, ci, yi, xi, logx: np.ndarray, lnt: np.ndarr
     """The bounds of :func:`fill_unexposed` for the pixels ``(ci, yi, xi)`` of ``Zt`` (K, C,
     H, W) that no exposure measures: ``(ln E, saturated in every exposure)``, one each."""
     K = Zt.shape[0]
-    zz = Zt[:, ci, yi, xi].astype(np.int64)  # (K, n)
+    zz = Zt[:, ci, yi, xi]  # (K, n), unsigned levels
     hi = zz >= top
-    lo = zz <= 0
+    lo = zz == 0
     # lower bound from the shortest clipped-high exposure, upper from the longest black one
-    k_hi = np.where(hi.any(axis=0), np.argmax(hi, axis=0), -1)
-    k_lo = np.where(lo.any(axis=0), K - 1 - np.argmax(lo[::-1], axis=0), -1)
+    # (-1: none); a loop over the few exposures beats argmax along the first axis
+    k_hi = np.full(zz.shape[1], -1, np.intp)
+    k_lo = np.full(zz.shape[1], -1, np.intp)
+    for k in range(K - 1, -1, -1):
+        k_hi[hi[k]] = k
+    for k in range(K):
+        k_lo[lo[k]] = k
     lb = logx[top, ci] - lnt[np.maximum(k_hi, 0)]
     ub = logx[1, ci] - lnt[np.maximum(k_lo, 0)]
     val = np.where(k_hi >= 0, np.where(k_lo >= 0, 0.5 * (lb + ub), lb), ub)

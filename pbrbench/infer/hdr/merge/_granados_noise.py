@@ -19,7 +19,7 @@ __all__ = ["estimate_noise_levels"]
 
 
 def estimate_noise_levels(Z: np.ndarray, t: np.ndarray, inv: np.ndarray, q: np.ndarray, c: int,
-                          max_pixels: int = 8192, min_count: int = 8, n_bins: int = 48,
+                          max_pixels: int = 4096, min_count: int = 8, n_bins: int = 48,
                           reweight: int = 2) -> tuple[float, float]:
     r"""Fit the camera noise model ``var(x) = a + b x`` (``a = sigma_r^2``, ``b = 1 / N_fw``,
     ``a, b >= 0``) of channel ``c`` from the spread of adjacent exposures.
@@ -70,7 +70,7 @@ def estimate_noise_levels(Z: np.ndarray, t: np.ndarray, inv: np.ndarray, q: np.n
                          reweight)[0]
 
 
-def _noise_levels(Z, t, inv, channels, max_pixels=8192, min_count=8, n_bins=48, reweight=2):
+def _noise_levels(Z, t, inv, channels, max_pixels=4096, min_count=8, n_bins=48, reweight=2):
     """:func:`estimate_noise_levels` of several channels at once (one sort and one set of group
     sums for all): ``channels`` is a list of ``(c, q_c)``; returns one ``(a, b)`` per entry."""
     K, H, W = Z.shape[:3]
