@@ -309,7 +309,9 @@ def by_family(jobs: list[dict], conditions: list[str]) -> list[dict]:
 
 def history_figures(store, run_id: str, info: dict, quality_name: str, out_dir: Path) -> list[dict]:
     """One history plot per task and condition of its headline metric (mean over scenes) across
-    the stored runs of the same quality, written under ``<out_dir>/history/``."""
+    the stored runs of the same quality, written under ``<out_dir>/history/``.  A task with
+    fewer than two such runs gets none: one point is not a history, and drawing the plots
+    is most of a report's time."""
     from pbrbench.report.figures import history_png
 
     out = []
@@ -325,6 +327,8 @@ def history_figures(store, run_id: str, info: dict, quality_name: str, out_dir: 
         for r in rows:
             if r["run"] not in runs:
                 runs.append(r["run"])
+        if len(runs) < 2:
+            continue
         conds = [c for c in ti.get("conditions", []) if any(r["condition"] == c for r in rows)]
         conds += sorted({r["condition"] for r in rows} - set(conds))
         for cond in conds:

@@ -65,9 +65,25 @@ def parse(path: Path) -> Parsed:
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
+    """The report of the second of two runs into one store (the first has no history to plot)."""
     tmp = tmp_path_factory.mktemp("report")
+    first = fake_run(tmp, task=EvilTask())
     o = fake_run(tmp, task=EvilTask())
+    assert o.run_id != first.run_id
     return tmp, o
+
+
+def test_a_first_run_draws_no_history_and_says_when_it_will(tmp_path):
+    o = fake_run(tmp_path, task=EvilTask())
+    site = o.report.parent
+    hist = site / "history.html"
+    assert parse(hist).imgs == [] and "the plots appear once the store holds two runs" in hist.read_text()
+    assert len(parse(site / "task-fake.html").imgs) == 4 * 6   # the job figures, no history plot
+    assert not list((site / "history").glob("*.png"))
+    # the second run into the same store plots both runs
+    o2 = fake_run(tmp_path, task=EvilTask())
+    h2 = parse(o2.report.parent / "history.html")
+    assert h2.imgs and "over 2 run(s)" in (o2.report.parent / "history.html").read_text()
 
 
 def test_the_site_is_offline_every_image_decodes_and_every_link_resolves(report):
