@@ -18,7 +18,8 @@ Noise scales measured over independent render seeds (:data:`SCALES_FILE`, writte
 score of an algorithm on a job has an entry for its task, scene, condition, scene hash, algorithm
 version and quality (and the job's inputs do not depend on the seed), that algorithm is not run
 on the replicates, and each score's standard error is the entry's standard deviation over the
-seeds, on its degrees of freedom (seeds - 1); its bias is not estimated (NaN).  Used for the
+seeds, on its degrees of freedom (seeds - 1); its bias is the entry's ``bias`` where it has one
+(a draft entry: its mean over the seeds minus the standard entry's), else not estimated (NaN).  Used for the
 inverse-rendering methods, each call of which is a series of Mitsuba renders; anything the
 table does not name exactly (another version, scene file, render seed or quality) falls back to
 the replicates.
@@ -64,14 +65,16 @@ def _values(scores) -> dict:
 @functools.lru_cache(maxsize=4)
 def noise_scales(path: str = str(SCALES_FILE)) -> dict:
     """``{(task, scene, condition, scene_hash, algorithm, algorithm_version, metric, quality): (sd,
-    dof)}`` from the scales file (empty when it is missing)."""
+    dof, bias)}`` from the scales file (empty when it is missing; ``bias`` NaN where the entry
+    has none)."""
     try:
         with open(path) as f:
             entries = json.load(f).get("entries", [])
     except FileNotFoundError:
         return {}
     return {(e["task"], e["scene"], e["condition"], e["scene_hash"], e["algorithm"], e["algorithm_version"],
-             e["metric"], e["quality"]): (float(e["sd"]), float(e["dof"])) for e in entries}
+             e["metric"], e["quality"]): (float(e["sd"]), float(e["dof"]), float(e.get("bias", "nan")))
+            for e in entries}
 
 
 def _scale_key(d: dict, quality_name: str) -> tuple:
@@ -80,7 +83,7 @@ def _scale_key(d: dict, quality_name: str) -> tuple:
 
 
 def scaled_scores(full, quality, scales: dict | None = None) -> dict:
-    """``{score key: (sd, dof)}`` of the scores in ``full`` whose algorithm has a noise scale for
+    """``{score key: (sd, dof[, bias])}`` of the scores in ``full`` whose algorithm has a noise scale for
     every one of its scores on the job (module docstring)."""
     scales = noise_scales() if scales is None else scales
     if not scales or full is None or isinstance(full, dict):
@@ -155,8 +158,8 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
         k = score_key(s)
         scale = reps.get("scales", {}).get(k)
         if scale is not None:     # the standard error over independent render seeds (module docstring)
-            s.update(replicates=None, rep_noise=None, uncertainty=scale[0], dof=scale[1], bias=float("nan"),
-                     unstable=None)
+            s.update(replicates=None, rep_noise=None, uncertainty=scale[0], dof=scale[1],
+                     bias=float(scale[2]) if len(scale) > 2 else float("nan"), unstable=None)
             continue
         r = reps.get("replicates", {}).get(k)
         s["replicates"] = list(r) if r is not None else None

@@ -7,6 +7,7 @@ import json
 import math
 
 import numpy as np
+import pytest
 
 from pbrbench.bench.uncertainty import SCALES_FILE, attach, noise_scales, replicate_scores
 from pbrbench.quality import get_quality
@@ -90,4 +91,23 @@ def test_the_committed_table_is_well_formed():
     assert entries and len(noise_scales()) == len(entries)          # one entry per key
     for e in entries:
         assert e["sd"] >= 0 and e["dof"] == len(e["render_seeds"]) - 1 >= 3 and 0 not in e["render_seeds"]
-        assert e["quality"] == "standard" and len(e["scene_hash"]) == 64
+        assert e["quality"] in ("draft", "standard") and len(e["scene_hash"]) == 64
+    # a draft entry with a standard twin carries the difference of the two means as its bias
+    std = {(e["scene"], e["condition"], e["algorithm"], e["algorithm_version"], e["metric"]): e
+           for e in entries if e["quality"] == "standard"}
+    draft = [e for e in entries if e["quality"] == "draft"]
+    for e in draft:
+        twin = std.get((e["scene"], e["condition"], e["algorithm"], e["algorithm_version"], e["metric"]))
+        if twin is None:
+            assert "bias" not in e
+        else:
+            assert e["bias"] == pytest.approx(e["mean"] - twin["mean"], abs=1e-12) and e["bias_se"] >= 0
+
+
+def test_a_draft_scale_with_a_bias_reports_it():
+    task, algs, gts, job, res, version = _setup()
+    table = {k: (0.25, 7.0, 0.75) for k in _table(version)}
+    scores = attach([s.as_dict() for s in res.scores],
+                    replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"),
+                                     full=res.scores, scales=table))
+    assert {(s["uncertainty"], s["bias"]) for s in scores if s["algorithm"] == "costly"} == {(0.25, 0.75)}
