@@ -166,18 +166,36 @@ class PoolExecutor:
         self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"),
                                          initializer=_pool_setup, initargs=(variant, settings))
         self._pending: set = set()
+        self._total = self._done = 0
 
     def imap(self, fn, arglists):
+        for args in arglists:
+            self.submit(fn, args)
+        yield from self.finished(block=True)
+
+    def submit(self, fn, args) -> None:
+        """Queue ``fn(*args)`` on a worker now; its result comes from :meth:`finished`.  With
+        :meth:`finished` this lets a caller hand out work as it becomes ready (a job as soon as
+        its scenes are rendered) and collect what is done in between."""
+        import cloudpickle
+
+        self._pending.add(self._pool.submit(_pool_call, cloudpickle.dumps((fn, tuple(args)))))
+        self._total += 1
+
+    def finished(self, *, block: bool):
+        """The results of the submitted tasks as they finish: those finished already
+        (``block=False``), or every one (``block=True``, waiting for each)."""
         from concurrent.futures import FIRST_COMPLETED, wait
         from concurrent.futures.process import BrokenProcessPool
 
         import cloudpickle
 
-        self._pending = {self._pool.submit(_pool_call, cloudpickle.dumps((fn, tuple(args)))) for args in arglists}
-        total, done = len(self._pending), 0
         try:
             while self._pending:
-                finished, self._pending = wait(self._pending, return_when=FIRST_COMPLETED)
+                finished, self._pending = wait(self._pending, timeout=None if block else 0,
+                                               return_when=FIRST_COMPLETED)
+                if not finished:
+                    return
                 broken = False
                 for fut in finished:    # every result that arrived is kept, whatever the set's order
                     try:
@@ -185,15 +203,16 @@ class PoolExecutor:
                     except BrokenProcessPool:
                         broken = True
                         continue
-                    done += 1
+                    self._done += 1
                     yield cloudpickle.loads(result)
                 if broken:
-                    raise UserError(f"--executor pool: a worker process died ({done} of {total} tasks "
+                    raise UserError(f"--executor pool: a worker process died ({self._done} of {self._total} tasks "
                                     "finished and kept; killed, out of memory or a crash in a library); "
                                     "`pbrbench run --resume RUN` reruns only the missing jobs")
-        finally:
-            if self._pending:     # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
+        except BaseException:   # interrupted (Ctrl-C, an error, the consumer stopped): end the work now
+            if self._pending:
                 self._kill()
+            raise
 
     def _kill(self):
         procs = list((getattr(self._pool, "_processes", None) or {}).values())

@@ -9,7 +9,9 @@ Flow of :func:`run_benchmark`:
 3. the jobs run (:mod:`pbrbench.bench.executors`), each a pure function of (task, job, ground
    truths, algorithms, seed, quality); as each finishes its scores go into the store in one
    transaction and its figures into ``<out>/<run>/figures/<job>/``, so an interrupted run keeps
-   everything completed;
+   everything completed.  With the pool executor steps 2 and 3 overlap: the renders stay in
+   this process, and each job goes to a worker as soon as its scenes are rendered (the scenes of
+   the longest jobs first);
 4. the scores are compared with the regression baselines once, and the comparison is stored with
    the run; the run is exported as ``<out>/<run>/scores.json``, the HTML report (which reads only
    the store) is written, and only then is the run marked complete.
@@ -79,8 +81,8 @@ class RunOutcome:
     n_skipped: int
     errors: dict[str, str]
     comparison: object | None = None
-    render_seconds: float = 0.0
-    job_seconds: float = 0.0
+    render_seconds: float = 0.0   # wall time until every scene is rendered
+    job_seconds: float = 0.0      # wall time from then until the last job (the pool runs jobs during the renders too)
     wall_seconds: float = 0.0
     renders: int = 0
     n_cached: int = 0
@@ -261,7 +263,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
         # an executor that fails to start fails the run it was started for (recorded, not left running)
         ex = executor or make_executor(cfg.executor, scheduler=cfg.scheduler, workers=cfg.workers, variant=variant,
                                        settings=settings)
-        # ---- ground truths
+        # ---- ground truths and jobs (finished ones with unchanged inputs come from the job cache)
         t0 = time.perf_counter()
         metas: dict[str, tuple[dict, bool]] = {}
         missing = []
@@ -271,23 +273,10 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                 missing.append(n)
             else:
                 metas[n] = (m, True)
-        if missing:
-            with Progress(len(missing), f"render ({quality.name})", bars=bars, unit="scene") as bar:
-                rex = LocalExecutor() if getattr(ex, "renders_in_process", False) else ex
-                for name, meta, cached in rex.imap(_render_task, [(source, specs[n]) for n in missing]):
-                    metas[name] = (meta, cached)
-                    outcome.renders += int(not cached)
-                    bar.update(1, name)
-        for n in names:
-            store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1], spp_file=specs[n].render.spp)
-        outcome.render_seconds = time.perf_counter() - t0
-
-        # ---- jobs (finished ones with unchanged inputs come from the job cache)
-        t0 = time.perf_counter()
         algs = {t: registry.for_task(t) for t in tasks}
         jcache = JobCache(Path(settings.cache) / "jobs" if cfg.job_cache else None)
         fps, cached_results, args = {}, [], []
-        for j in todo:
+        for j in todo:    # a ground truth's cache key needs no render
             fp = fingerprint(j, seed=cfg.seed, quality=quality, algorithms=algs[j.task], task=tasks[j.task],
                              gt_keys=[source.gt_key(specs[n]) for n in (j.scene, *j.extra_scenes)],
                              uncertainty=cfg.uncertainty)
@@ -301,25 +290,81 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
         outcome.n_cached = len(cached_results)
         if getattr(ex, "name", "local") != "local":   # parallel workers: the longest jobs first, so that none is left alone at the end
             args.sort(key=lambda a: -_expected_cost(a[1], a[6], quality))
+        renders_here = getattr(ex, "renders_in_process", False)
+        # pipelined: renders in this process and workers that take work as it comes (the pool): a
+        # job starts as soon as its scenes are rendered, so the workers use the cores that a
+        # render's single-threaded kernel compiles leave idle; the scenes of the first jobs first
+        pipeline = bool(missing) and renders_here and hasattr(ex, "submit")
+        waiting: list = []
+        if pipeline:
+            first = {}
+            for i, a in enumerate(args):
+                for n in (a[1].scene, *a[1].extra_scenes):
+                    first.setdefault(n, i)
+            missing.sort(key=lambda n: first.get(n, len(args)))
+            pending_scenes = set(missing)
+            for a in args:
+                if pending_scenes.isdisjoint((a[1].scene, *a[1].extra_scenes)):
+                    ex.submit(execute_job, a)
+                else:
+                    waiting.append(a)
 
-        def results():
-            yield from cached_results
-            for res in ex.imap(execute_job, args):
-                jcache.put(fps[res["key"]], res)
-                yield res
+        def keep(res, bar):
+            if res["files"]:
+                _write_files(run_dir, res["files"])
+            store.add_job_result(run_id, res["key"], res["task"], res["scores"], seconds=res["seconds"],
+                                 error=res["error"])
+            if res["error"]:
+                outcome.errors[res["key"]] = res["error"]
+                last = [ln for ln in res["error"].strip().splitlines() if ln.strip()][-1:]
+                bar.write(f"pbrbench: job failed: {res['key'][:100]}: {last[0] if last else ''}")
+            bar.update(1, res["key"])
 
-        with Progress(len(todo), "jobs", bars=bars, unit="job") as bar:
-            for res in results():
-                if res["files"]:
-                    _write_files(run_dir, res["files"])
-                store.add_job_result(run_id, res["key"], res["task"], res["scores"], seconds=res["seconds"],
-                                     error=res["error"])
-                if res["error"]:
-                    outcome.errors[res["key"]] = res["error"]
-                    last = [ln for ln in res["error"].strip().splitlines() if ln.strip()][-1:]
-                    bar.write(f"pbrbench: job failed: {res['key'][:100]}: {last[0] if last else ''}")
-                bar.update(1, res["key"])
-        outcome.job_seconds = time.perf_counter() - t0
+        jbar = None
+        try:
+            if missing:
+                if pipeline:
+                    jbar = Progress(len(todo), "jobs", bars=bars, unit="job")
+                with Progress(len(missing), f"render ({quality.name})", bars=bars, unit="scene") as bar:
+                    rex = LocalExecutor() if renders_here else ex
+                    for name, meta, cached in rex.imap(_render_task, [(source, specs[n]) for n in missing]):
+                        metas[name] = (meta, cached)
+                        outcome.renders += int(not cached)
+                        bar.update(1, name)
+                        if pipeline:
+                            pending_scenes.discard(name)
+                            still = []
+                            for a in waiting:
+                                if pending_scenes.isdisjoint((a[1].scene, *a[1].extra_scenes)):
+                                    ex.submit(execute_job, a)
+                                else:
+                                    still.append(a)
+                            waiting = still
+                            for res in ex.finished(block=False):
+                                jcache.put(fps[res["key"]], res)
+                                keep(res, jbar)
+            for n in names:
+                store.add_ground_truth(run_id, n, metas[n][0], from_cache=metas[n][1], spp_file=specs[n].render.spp)
+            outcome.render_seconds = time.perf_counter() - t0
+            t_jobs = time.perf_counter()
+            for a in waiting:   # (none: every scene is rendered by now)
+                ex.submit(execute_job, a)
+
+            def results():
+                yield from cached_results
+                for res in ex.finished(block=True) if pipeline else ex.imap(execute_job, args):
+                    jcache.put(fps[res["key"]], res)
+                    yield res
+
+            if jbar is None:
+                jbar = Progress(len(todo), "jobs", bars=bars, unit="job")
+            with jbar:
+                for res in results():
+                    keep(res, jbar)
+        finally:
+            if jbar is not None:
+                jbar.close()
+        outcome.job_seconds = time.perf_counter() - t_jobs
         final = "complete" if not outcome.errors else "complete-with-errors"
 
         # ---- regression check, export, report; only then is the run complete

@@ -3,6 +3,7 @@ Every score equals the local executor's, bit for bit; a worker that dies is one 
 the results finished before it are kept; the longest jobs are handed out first."""
 
 import os
+import time
 
 import pytest
 
@@ -115,9 +116,47 @@ def test_every_result_that_arrived_with_a_death_is_kept():
             pass
 
     ex = object.__new__(PoolExecutor)
-    ex.workers, ex._pool, ex._pending = 1, _Pool(), set()
+    ex.workers, ex._pool, ex._pending, ex._total, ex._done = 1, _Pool(), set(), 0, 0
     got = []
     with pytest.raises(UserError, match=r"a worker process died \(20 of 21 tasks finished and kept"):
         for v in ex.imap(_die_on, [(i, -1) for i in range(21)]):
             got.append(v)
     assert sorted(got) == [i for i in range(21) if i != 7]
+
+
+class _WaitForAJobSource(FakeSource):
+    """Each render after the first waits (up to 20 s) until a worker has loaded a ground truth
+    for a job, and notes in ``saw`` whether one did: with the renders and the jobs in sequence
+    none can."""
+
+    def render(self, spec):
+        root = self.cache.root
+        root.mkdir(parents=True, exist_ok=True)
+        if list(root.glob("rendered-*")):
+            deadline = time.monotonic() + 20.0
+            while not list(root.glob("loaded-*")) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            (root / f"saw-{spec.name}").write_text(str(bool(list(root.glob("loaded-*")))))
+        (root / f"rendered-{spec.name}").write_text("")
+        return super().render(spec)
+
+    def load(self, spec):
+        (self.cache.root / f"loaded-{spec.name}").write_text("")
+        return super().load(spec)
+
+
+def test_a_job_starts_on_the_pool_as_soon_as_its_scenes_are_rendered(tmp_path):
+    ex = PoolExecutor(workers=2, variant=None, settings=settings_for(tmp_path))
+    src = _WaitForAJobSource(tmp_path / "fake")
+    try:
+        o = run_benchmark(RunConfig(quality="draft", executor="pool"), settings=settings_for(tmp_path),
+                          tasks={"fake": FakeTask()}, source=src, executor=ex, log=lambda m: None)
+    finally:
+        ex.close()
+    assert not o.errors and o.renders == 2
+    (saw,) = (tmp_path / "fake").glob("saw-*")     # the second render ran while a job of the first scene did
+    assert saw.read_text() == "True"
+    # and the scores are those of the same run with the renders and jobs in sequence
+    o_l = run_benchmark(RunConfig(quality="draft"), settings=settings_for(tmp_path / "l"), tasks={"fake": FakeTask()},
+                        source=FakeSource(tmp_path / "fake-l"), log=lambda m: None)
+    assert {_key(s): repr(s["value"]) for s in o.scores} == {_key(s): repr(s["value"]) for s in o_l.scores}
