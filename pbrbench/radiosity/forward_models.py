@@ -66,7 +66,7 @@ __all__ = [
 ]
 
 VERSION = "1"
-FF_FORMAT = 1        # bump when the form factors of a mesh change (invalidates the disk cache)
+FF_FORMAT = 2        # bump when the form factors of a mesh change (invalidates the disk cache); 2: keyed by the mesh
 MEMO_SIZE = 6
 MESH_MEMO_SIZE = 3   # form-factor matrices kept (dense: N^2 doubles each)
 DEFAULT_CELLS = 16
@@ -333,6 +333,7 @@ class SceneModel:
 
 _MEMO = Memo("radiosity scene models", MEMO_SIZE)
 _MESH = Memo("radiosity meshes and form factors", MESH_MEMO_SIZE)   # (mesh, F, visibility) by (geometry hash, patch size)
+_FF = Memo("radiosity form factors", MESH_MEMO_SIZE)                # F by (mesh hash, patch size)
 _DISK: dict = {"dir": None}
 
 
@@ -358,11 +359,26 @@ def geometry_hash(spec) -> str:
     return h.hexdigest()
 
 
-def _disk_path(spec, patch_size: float):
+def mesh_hash(patches: Patches, visibility: bool) -> str:
+    """sha256 of what a form-factor matrix depends on: the patches' geometry and labels and the
+    occluders (area lights included), not their albedo; scenes that differ only in their
+    materials or light strengths (an albedo sweep, the black and the white room) share it."""
+    import hashlib
+
+    h = hashlib.sha256(b"visibility" if visibility else b"no visibility")
+    for a in (patches.vertices, patches.n_vertices, patches.object_id, patches.grid_index, patches.face_id,
+              patches.occluder_triangles, patches.occluder_groups):
+        a = np.ascontiguousarray(a)
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _disk_path(key: str, patch_size: float):
     d = _DISK["dir"]
     if d is None:
         return None
-    return d / f"{geometry_hash(spec)[:32]}-{patch_size:.9g}-v{VERSION}.{FF_FORMAT}.npz"
+    return d / f"{key[:32]}-{patch_size:.9g}-v{VERSION}.{FF_FORMAT}.npz"
 
 
 def _load_form_factors(path, n: int):
@@ -420,14 +436,19 @@ def scene_model(spec, *, cells: int = DEFAULT_CELLS, area_samples: int = 4, max_
         patches, F, vis = _MESH[mkey]
     else:
         patches = model_patches(spec, patch_size)
-        path = _disk_path(spec, patch_size)
-        got = _load_form_factors(path, len(patches))
-        if got is not None:
-            F, vis = got
+        vis = needs_visibility(spec)
+        fkey = (mesh_hash(patches, vis), key[1])   # the form factors: shared by scenes of one mesh
+        if fkey in _FF:
+            F = _FF[fkey]
         else:
-            vis = needs_visibility(spec)
-            F = form_factor_matrix(patches, visibility=vis)
-            _save_form_factors(path, F, vis)
+            path = _disk_path(fkey[0], patch_size)
+            got = _load_form_factors(path, len(patches))
+            if got is not None and got[1] == vis:
+                F = got[0]
+            else:
+                F = form_factor_matrix(patches, visibility=vis)
+                _save_form_factors(path, F, vis)
+            _remember(_FF, fkey, F, size=MESH_MEMO_SIZE)
         _remember(_MESH, mkey, (patches, F, vis), size=MESH_MEMO_SIZE)
     E = direct_radiosity(spec, patches, shadows=True, area_samples=area_samples)
     sol = solve_radiosity(F, patches.albedo, E, method="jacobi", max_bounces=max_bounces, tol=tol)

@@ -99,7 +99,7 @@ def test_form_factors_are_kept_on_disk_by_geometry_and_survive_a_new_process(tmp
         FM._MESH.clear()
         first = FM.scene_model(spec, cells=4)
         (f,) = list((tmp_path / "ff").iterdir())
-        assert f.suffix == ".npz" and FM.geometry_hash(spec)[:32] in f.name
+        assert f.suffix == ".npz" and FM.mesh_hash(first.patches, first.visibility)[:32] in f.name
         # a fresh process (memo empty) and a re-seeded render of the same geometry: read, not solved
         FM._MEMO.clear()
         FM._MESH.clear()
@@ -120,3 +120,35 @@ def test_form_factors_are_kept_on_disk_by_geometry_and_survive_a_new_process(tmp
         FM.set_disk_cache(None)
         FM._MEMO.clear()
         FM._MESH.clear()
+
+
+def test_scenes_that_differ_only_in_albedo_share_their_form_factors(tmp_path, monkeypatch):
+    from pbrbench.radiosity import form_factor_matrix as FFM
+
+    a, b = lib("groove_reflex_parallel", 1), lib("groove_reflex_parallel", 4)   # one groove, two albedos
+    assert FM.geometry_hash(a) != FM.geometry_hash(b)
+    try:
+        FM.set_disk_cache(None)
+        for m in (FM._MEMO, FM._MESH, FM._FF):
+            m.clear()
+        fresh_b = FM.scene_model(b, cells=4)          # solved on its own
+        for m in (FM._MEMO, FM._MESH, FM._FF):
+            m.clear()
+        FM.set_disk_cache(tmp_path / "ff")
+        first = FM.scene_model(a, cells=4)
+        for m in (FM._MEMO, FM._MESH, FM._FF):     # a fresh process: the disk holds a's form factors
+            m.clear()
+
+        def boom(*args, **kw):
+            raise AssertionError("form factors solved again")
+
+        monkeypatch.setattr(FFM, "form_factor_matrix", boom)
+        shared = FM.scene_model(b, cells=4)
+        assert len(list((tmp_path / "ff").iterdir())) == 1
+        assert not np.array_equal(shared.patches.albedo, first.patches.albedo)
+        np.testing.assert_array_equal(shared.bounce(None), fresh_b.bounce(None))   # its own albedo's solution
+        assert not np.allclose(shared.bounce(None), first.bounce(None))
+    finally:
+        FM.set_disk_cache(None)
+        for m in (FM._MEMO, FM._MESH, FM._FF):
+            m.clear()
