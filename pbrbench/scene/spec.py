@@ -17,6 +17,7 @@ import inspect
 import json
 import math
 import re
+import zlib
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -41,6 +42,7 @@ MAX_CLIP = 1e7
 MAX_POWER = 1e12
 MAX_ANGLE = 36000.0           # degrees (100 turns)
 MAX_SEED = (1 << 21) - 1      # the renderer derives 32-bit seeds as 2000 * seed + pass offsets
+SEED_SPAN = (1 << 18) - (1 << 12)   # a scene without a seed gets one in 1 .. SEED_SPAN (default_seed)
 MAX_DEPTH = 1024
 MAX_NAME = 200                # characters of a scene name (it is also a file name)
 MAX_SURFACE_INT = 1000        # integer parameters of an analytic surface (counts)
@@ -542,6 +544,20 @@ class Render(Model):
         return self
 
 
+def default_seed(name: str) -> int:
+    """The ``render.seed`` of a scene whose file gives none: ``crc32(name) mod SEED_SPAN + 1``.
+
+    Scenes rendered with one seed share their Monte Carlo noise wherever they trace the same
+    paths: the members of a sweep (the same geometry, another albedo) and two files of the same
+    content (a twin that repeats another scene at one of its sweep values) would then give
+    correlated scores, and a mean over them would get a standard error too small for it (the
+    report adds independent scenes' errors in quadrature).  A seed derived from the name makes
+    every scene's noise its own, deterministically.  Below ``2^18 - 2^12`` the renderer's pass
+    seeds ``16 (1000 seed + offset) + group`` stay below ``2^32`` (no wrap-around) for every
+    ``--render-seed`` offset up to 4096."""
+    return zlib.crc32(name.encode("utf-8")) % SEED_SPAN + 1
+
+
 # -------------------------------------------------------------------------------------- scene
 _NAME_CHARS = re.compile(r"^[A-Za-z0-9_.\-\[\]=,+ ]+$")
 NAME_RULE = (f"a scene name is also a file name: 1..{MAX_NAME} letters, digits, spaces and _ . - [ ] = , +, "
@@ -618,6 +634,8 @@ class SceneSpec(Model):
                 if s.name in seen:
                     raise ValueError(f"shapes[{i}].name: {s.name!r} is used twice; shape names must be unique")
                 seen.add(s.name)
+        if "seed" not in self.render.model_fields_set:   # no render.seed in the file: one of its own
+            object.__setattr__(self, "render", self.render.model_copy(update={"seed": default_seed(self.name)}))
         return self
 
     # ------------------------------------------------------------------------- derived

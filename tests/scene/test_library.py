@@ -81,7 +81,39 @@ def test_good_file_loads(tmp_path):
     assert spec.name == "t" and len(spec.lights) == 2
 
 
+def test_a_scene_without_a_seed_gets_its_own_and_a_given_seed_is_kept(tmp_path):
+    from pbrbench.render.groundtruth import SEED_MOD, SEED_STRIDE
+    from pbrbench.scene.spec import SEED_SPAN, default_seed
+
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(GOOD + '\n[sweep]\n"materials.paint.albedo" = [0.1, 0.5, 0.9]\n')
+    members = load_scene_file(sweep)
+    seeds = [m.render.seed for m in members]
+    assert len(set(seeds)) == 3 and all(1 <= s <= SEED_SPAN for s in seeds)   # one noise stream per member
+    assert seeds == [default_seed(m.name) for m in members]
+    again = [m.render.seed for m in load_scene_file(sweep)]
+    assert again == seeds                                       # deterministic: the same file, the same seeds
+    for given in (0, 12345):
+        f = tmp_path / f"given{given}.toml"
+        f.write_text(GOOD.replace("spp = 4", f"spp = 4\nseed = {given}"))
+        assert [m.render.seed for m in load_scene_file(f)] == [given]
+    # the renderer's pass seeds 16 (1000 seed + offset) + group do not wrap around 2^32 for any
+    # derived seed, --render-seed offset up to 4096, pass offset below 1000 and group below 16
+    assert SEED_STRIDE * ((SEED_SPAN + 4096) * 1000 + 999) + 15 < SEED_MOD
+
+
 # ------------------------------------------------------------------------------ library
+def test_no_two_library_scenes_share_their_render_noise():
+    # a mean over scenes adds their standard errors in quadrature: their noise must be independent
+    # (sphere_5lights and ps_near_distant[radius=1] are the same scene; with one seed they gave the
+    # same noise, and the mean of the two counted one measurement twice)
+    lib = load_library()
+    seeds = {}
+    for name, spec in lib.items():
+        assert spec.render.seed not in seeds, f"{name} and {seeds.get(spec.render.seed)} share render.seed"
+        seeds[spec.render.seed] = name
+
+
 def test_every_library_scene_validates():
     lib = load_library()
     assert len(lib) >= 60
