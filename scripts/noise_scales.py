@@ -8,11 +8,12 @@ job's scene is rendered with each render seed ``1 .. --seeds`` (every scene file
 ``render.seed`` offset by it, as ``pbrbench run --render-seed``), the algorithm is scored on it
 as the benchmark scores it (``run_job``, algorithm seed 0), and the sample standard deviation of
 each metric over the seeds is written with its degrees of freedom (seeds - 1), the algorithm's
-version, the scene's content hash at render seed 0 and the quality.  ``pbrbench run`` then takes
+version, the scene's content hash at render seed 0, its noise hash (the content hash without the
+render seed: the key, so the scale holds at any render seed of the same scene) and the quality.  ``pbrbench run`` then takes
 those scores' standard errors from this table instead of re-running the algorithm on the four
 delete-one-group replicates (:mod:`pbrbench.bench.uncertainty`, ``docs/uncertainty.md``).  The
-table is valid only for the algorithm version and scene hash it names; anything else falls back
-to the replicates.  The entries of qualities not measured are kept from ``--out``.  A draft
+table is valid only for the algorithm version and scene content it names; anything else falls
+back to the replicates.  The entries of qualities not measured are kept from ``--out``.  A draft
 entry whose standard twin is in the table also gets its Monte Carlo bias, the difference of the
 two means (``bias``, with ``bias_se``), which the run reports as the score's bias.  Nothing is
 fetched; renders missing from the cache are made.
@@ -98,6 +99,7 @@ def _measure(q, seeds, lib, task, tasks, algs, cache, entries) -> int:
     for job in jobs:
         spec0 = src0.specs([job.scene])[job.scene]
         hash0 = str(src0.load(spec0).meta["scene_hash"])
+        noise_hash = spec0.noise_hash()     # the key: the scale holds at any render seed of this content
         values: dict = {}
         for s in range(1, seeds + 1):
             src = GroundTruthSource(q, cache=cache, library=lib, render_seed=s)
@@ -111,7 +113,7 @@ def _measure(q, seeds, lib, task, tasks, algs, cache, entries) -> int:
             if len(v) != seeds or not all(math.isfinite(x) for x in v):
                 continue
             entries.append({"task": job.task, "scene": job.scene, "condition": job.condition, "scene_hash": hash0,
-                            "algorithm": alg, "algorithm_version": version, "metric": metric,
+                            "noise_hash": noise_hash, "algorithm": alg, "algorithm_version": version, "metric": metric,
                             "quality": q.name, "sd": float(np.std(v, ddof=1)), "dof": seeds - 1,
                             "mean": float(np.mean(v)), "render_seeds": list(range(1, seeds + 1))})
     return len(jobs)

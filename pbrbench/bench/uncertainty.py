@@ -15,14 +15,16 @@ values (:data:`NOISE_SEEDS` degrees of freedom) is added.
 
 Noise scales measured over independent render seeds (:data:`SCALES_FILE`, written by
 ``scripts/noise_scales.py``) replace the replicates of the algorithms they cover: where every
-score of an algorithm on a job has an entry for its task, scene, condition, scene hash, algorithm
-version and quality (and the job's inputs do not depend on the seed), that algorithm is not run
+score of an algorithm on a job has an entry for its task, scene, condition, noise hash (the scene's
+content hash without its render seed, :meth:`pbrbench.scene.spec.SceneSpec.noise_hash`: a spread
+over render seeds holds at any seed), algorithm version and quality (and the job's inputs do not
+depend on the seed), that algorithm is not run
 on the replicates, and each score's standard error is the entry's standard deviation over the
 seeds, on its degrees of freedom (seeds - 1); its bias is the entry's ``bias`` where it has one
 (a draft entry: its mean over the seeds minus the standard entry's), else not estimated (NaN).  Used for the
 inverse-rendering methods, each call of which is a series of Mitsuba renders; anything the
-table does not name exactly (another version, scene file, render seed or quality) falls back to
-the replicates.
+table does not name exactly (another version, scene content or quality) falls back to the
+replicates.
 
 The replicate values are stored with the score (``replicates``, ``rep_noise``), so a difference
 between two conditions rendered from the same ground truth (``global - local`` of one scene) gets
@@ -64,27 +66,31 @@ def _values(scores) -> dict:
 
 @functools.lru_cache(maxsize=4)
 def noise_scales(path: str = str(SCALES_FILE)) -> dict:
-    """``{(task, scene, condition, scene_hash, algorithm, algorithm_version, metric, quality): (sd,
+    """``{(task, scene, condition, noise_hash, algorithm, algorithm_version, metric, quality): (sd,
     dof, bias)}`` from the scales file (empty when it is missing; ``bias`` NaN where the entry
-    has none)."""
+    has none; an entry without a ``noise_hash`` names no scene and is left out)."""
     try:
         with open(path) as f:
             entries = json.load(f).get("entries", [])
     except FileNotFoundError:
         return {}
-    return {(e["task"], e["scene"], e["condition"], e["scene_hash"], e["algorithm"], e["algorithm_version"],
+    return {(e["task"], e["scene"], e["condition"], e["noise_hash"], e["algorithm"], e["algorithm_version"],
              e["metric"], e["quality"]): (float(e["sd"]), float(e["dof"]), float(e.get("bias", "nan")))
-            for e in entries}
+            for e in entries if e.get("noise_hash")}
 
 
-def _scale_key(d: dict, quality_name: str) -> tuple:
-    return (d["task"], d["scene"], d["condition"], d["scene_hash"], d["algorithm"], d.get("algorithm_version", ""),
+def _scale_key(d: dict, quality_name: str, noise_hashes: dict) -> tuple:
+    h = noise_hashes.get(d["scene_hash"], d["scene_hash"])
+    return (d["task"], d["scene"], d["condition"], h, d["algorithm"], d.get("algorithm_version", ""),
             d["metric"], quality_name)
 
 
-def scaled_scores(full, quality, scales: dict | None = None) -> dict:
+def scaled_scores(full, quality, scales: dict | None = None, noise_hashes: dict | None = None) -> dict:
     """``{score key: (sd, dof[, bias])}`` of the scores in ``full`` whose algorithm has a noise scale for
-    every one of its scores on the job (module docstring)."""
+    every one of its scores on the job (module docstring).  ``noise_hashes``: ``{scene hash: noise
+    hash}`` of the job's scenes; a score whose scene hash it does not map is looked up by its
+    scene hash."""
+    noise_hashes = noise_hashes or {}
     scales = noise_scales() if scales is None else scales
     if not scales or full is None or isinstance(full, dict):
         return {}
@@ -92,11 +98,12 @@ def scaled_scores(full, quality, scales: dict | None = None) -> dict:
     by_alg: dict = {}
     for s in full:
         d = s.as_dict() if hasattr(s, "as_dict") else s
-        by_alg.setdefault(d["algorithm"], []).append((score_key(d), scales.get(_scale_key(d, qn))))
+        by_alg.setdefault(d["algorithm"], []).append((score_key(d), scales.get(_scale_key(d, qn, noise_hashes))))
     return {k: v for rows in by_alg.values() if all(v is not None for _, v in rows) for k, v in rows}
 
 
-def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None, scales=None) -> dict[str, dict]:
+def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None, scales=None,
+                     noise_hashes: dict | None = None) -> dict[str, dict]:
     """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: [v_n1, ..., v_nK]}}`` for the job's
     scores (keys ``(scene, algorithm, metric)``); parts that cannot be computed (a ground truth
     without its sample groups, a job whose inputs do not depend on the seed) are absent.
@@ -104,11 +111,12 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
     ``full``: the job's scores on the full ground truths, scored just before on ``gts`` (whose
     :attr:`~pbrbench.render.groundtruth.GroundTruth.reads` then name every array the job read): a
     replicate that changes none of those arrays is the same input, and its values are ``full``'s
-    without scoring it again (a job on analytic or noise-free passes costs one scoring)."""
+    without scoring it again (a job on analytic or noise-free passes costs one scoring).
+    ``noise_hashes``: as for :func:`scaled_scores`."""
     out: dict[str, dict] = {}
     algorithms = list(algorithms)
     seed_dependent = task.seed_dependent(job)
-    scaled = {} if seed_dependent else scaled_scores(full, quality, scales)
+    scaled = {} if seed_dependent else scaled_scores(full, quality, scales, noise_hashes)
     if scaled:
         # the algorithms whose standard errors come from the scales are not run on the replicates
         done = {a for (_, a, _) in scaled}

@@ -685,6 +685,19 @@ class SceneSpec(Model):
                 h.update(f.read())
         return h.hexdigest()
 
+    def noise_hash(self) -> str:
+        """:meth:`content_hash` without ``render.seed``: what the distribution of the scene's
+        Monte Carlo noise depends on.  Renders of one scene at different seeds are draws from one
+        distribution, so a spread measured over render seeds (``scripts/noise_scales.py``)
+        holds at any of them."""
+        d = self.canonical()
+        d["render"] = {k: v for k, v in d["render"].items() if k != "seed"}
+        h = hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode())
+        for p in self.referenced_files():
+            with open(p, "rb") as f:
+                h.update(f.read())
+        return h.hexdigest()
+
     def referenced_files(self) -> list[str]:
         import os
 

@@ -78,6 +78,37 @@ def test_a_partial_or_stale_table_falls_back_to_the_replicates():
         assert all(s["dof"] == 3 for s in attach([s.as_dict() for s in res.scores], reps))
 
 
+def test_a_table_keyed_by_the_noise_hash_covers_every_render_seed_of_that_content():
+    # the scores of a re-seeded render carry its own scene hash ("h"); the run maps it to the
+    # scene's noise hash, which the table names, and the table's scale applies
+    task, algs, gts, job, res, version = _setup()
+    reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores,
+                            scales=_table(version, scene_hash="n"), noise_hashes={"h": "n"})
+    assert task.calls[1:] == [["cheap"]] * 4
+    # another content (another noise hash) falls back to the replicates
+    task, algs, gts, job, res, version = _setup()
+    reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores,
+                            scales=_table(version, scene_hash="n"), noise_hashes={"h": "other"})
+    assert task.calls[1:] == [["cheap", "costly"]] * 4
+    assert all(s["dof"] == 3 for s in attach([s.as_dict() for s in res.scores], reps))
+
+
+def test_the_noise_hash_ignores_the_render_seed_and_nothing_else():
+    from pbrbench.bench.run import _noise_hashes
+    from pbrbench.bench.source import reseeded
+    from pbrbench.scene.load import SceneLibrary
+
+    spec = SceneLibrary().all()["ps_groove[albedo=0.9]"]
+    other = reseeded(spec, 3)
+    assert other.render.seed == spec.render.seed + 3 and other.content_hash() != spec.content_hash()
+    assert other.noise_hash() == spec.noise_hash()
+    twin = SceneLibrary().all()["ps_groove[albedo=0.7]"]        # another albedo: another noise
+    assert twin.noise_hash() != spec.noise_hash()
+    job = type("J", (), {"scene": "a", "extra_scenes": ("b",)})()
+    assert _noise_hashes({"a": other, "b": twin}, job) == {other.content_hash(): spec.noise_hash(),
+                                                          twin.content_hash(): twin.noise_hash()}
+
+
 def test_a_seed_dependent_job_ignores_the_table():
     # the seeds' spread was measured on noise-free inputs: camera noise is not in it
     task, algs, gts, job, res, version = _setup(seed_dependent=True)
@@ -91,7 +122,7 @@ def test_the_committed_table_is_well_formed():
     assert entries and len(noise_scales()) == len(entries)          # one entry per key
     for e in entries:
         assert e["sd"] >= 0 and e["dof"] == len(e["render_seeds"]) - 1 >= 3 and 0 not in e["render_seeds"]
-        assert e["quality"] in ("draft", "standard") and len(e["scene_hash"]) == 64
+        assert e["quality"] in ("draft", "standard") and len(e["scene_hash"]) == 64 and len(e["noise_hash"]) == 64
     # a draft entry with a standard twin carries the difference of the two means as its bias
     std = {(e["scene"], e["condition"], e["algorithm"], e["algorithm_version"], e["metric"]): e
            for e in entries if e["quality"] == "standard"}
