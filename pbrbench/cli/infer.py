@@ -5,7 +5,9 @@
   integration, the valid mask and ``result.json`` (with the angular error when DIR has
   ground-truth normals);
 * ``retinex IMAGE --out OUT``: IMAGE is an image file (EXR, 16-bit PNG, TIFF, JPEG, ...) or an
-  MIT-Intrinsic-layout object folder; writes reflectance and shading (EXR + PNG);
+  MIT-Intrinsic-layout object folder (its grey image, or with ``--colour`` its colour one, for
+  ``--method grosse2009`` and its ``--chromaticity-threshold``); writes reflectance and shading
+  (EXR + PNG);
 * ``hdr DIR --out OUT``: DIR is an exposure bracket (images plus a times file, or EXIF times);
   writes the merged radiance (EXR + tone-mapped PNG) and the inverse response (CSV).
 
@@ -79,6 +81,12 @@ def _add_retinex_options(rx):
     d_rx = default_method(estimate_lightness)
     rx.add_argument("--method", choices=list(LIGHTNESS), default=d_rx, help=f"default: {d_rx}")
     rx.add_argument("--threshold", type=float, default=None, help="log-gradient threshold (the method's default)")
+    rx.add_argument("--chromaticity-threshold", type=float, default=None, metavar="T",
+                    help="grosse2009 (colour retinex): a gradient is paint also where its chromaticity log-gradient "
+                         "exceeds T (the method's default; inf: luminance only)")
+    rx.add_argument("--colour", action="store_true",
+                    help="with an MIT Intrinsic Images folder: decompose the colour diffuse image (H, W, 3) instead "
+                         "of its grey channel mean (the colour protocol; grosse2009 uses the chromaticity)")
     rx.add_argument("--mask", default=None, metavar="FILE", help="a mask image (non-zero = use)")
     rx.add_argument("--gamma", choices=["auto", "linear", "srgb"], default="auto",
                     help="pixel encoding: auto = 8-bit files are sRGB, 16-bit / float are linear")
@@ -298,7 +306,7 @@ def _srgb_decode(x):
     return np.where(x <= 0.04045, x / 12.92, ((x + 0.055) / 1.055) ** 2.4)
 
 
-def _rx_input(path: Path, gamma: str, mask_file):
+def _rx_input(path: Path, gamma: str, mask_file, colour: bool = False):
     import numpy as np
 
     from pbrbench.datasets import is_mit, load_mit_object
@@ -312,7 +320,12 @@ def _rx_input(path: Path, gamma: str, mask_file):
             mask = read_mask(Path(mask_file), obj.mask.shape) if mask_file else obj.mask
         except ValueError as e:
             raise UserError(f"--mask {e}") from None
+        if colour:
+            return obj.name, obj.diffuse, mask, "MIT layout (colour diffuse image, linear)"
         return obj.name, obj.image, mask, "MIT layout (grey diffuse image, linear)"
+    if colour:
+        raise UserError(f"--colour chooses the colour image of an MIT Intrinsic Images folder; {path} is a file, "
+                        "whose channels are used as they are: drop --colour")
     a = load_image(path, "image")
     if a.ndim == 3 and a.shape[2] in (1, 2, 4):
         a = a[..., :-1] if a.shape[2] == 4 else a[..., 0]
@@ -347,9 +360,14 @@ def run_retinex(args) -> int:
 
     st = _Stages("retinex", ["load", f"decompose ({args.method})", "write"])
     with _data_warnings([]) as seen:
-        name, img, mask, enc = _rx_input(Path(args.image), args.gamma, args.mask)
+        name, img, mask, enc = _rx_input(Path(args.image), args.gamma, args.mask, colour=args.colour)
     st.next(f"{img.shape[1]}x{img.shape[0]} ({enc})")
     opts = {"threshold": args.threshold} if args.threshold is not None else {}
+    if args.chromaticity_threshold is not None:
+        if args.chromaticity_threshold < 0:
+            raise UserError(f"--chromaticity-threshold: {args.chromaticity_threshold:g} is negative; give a log-gradient "
+                            ">= 0, or inf for luminance edges only")
+        opts["chromaticity_threshold"] = args.chromaticity_threshold
     valid = (img > 0) if img.ndim == 2 else (img > 0).all(axis=-1)
     m = valid if mask is None else (mask & valid)
     if not m.any():

@@ -110,3 +110,39 @@ def test_infer_retinex_on_an_mit_folder_and_on_image_files(tmp_path, capsys):
     assert read_image(tmp_path / "o2" / "reflectance.exr").shape == (64, 64, 3)
     assert main(["infer", "retinex", str(tmp_path / "none.png"), "--out", str(tmp_path / "o3")]) == 1
     assert "none.png: no such file" in capsys.readouterr().err
+
+
+def test_infer_retinex_reaches_the_colour_method_and_its_chromaticity_threshold(tmp_path, capsys):
+    from pbrbench.infer.lightness import estimate_lightness
+    from pbrbench.io import read_image
+
+    mit_object(tmp_path / "box")
+    obj = load_mit_object(tmp_path / "box")
+    args = ["infer", "retinex", str(tmp_path / "box"), "--method", "grosse2009", "--colour"]
+    assert main(args + ["--out", str(tmp_path / "c"), "--chromaticity-threshold", "0.2"]) == 0
+    res = json.loads((tmp_path / "c" / "result.json").read_text())
+    assert res["encoding"] == "MIT layout (colour diffuse image, linear)"
+    assert res["options"] == {"chromaticity_threshold": 0.2}
+    r = read_image(tmp_path / "c" / "reflectance.exr")
+    assert r.shape == obj.diffuse.shape
+    # the option reached the method: the command's reflectance is the method's with that threshold,
+    # and another threshold gives another one
+    m = obj.mask
+    img = np.where(m[..., None], obj.diffuse, 0.0)
+    want, _ = estimate_lightness(img, method="grosse2009", mask=m & (obj.diffuse > 0).all(axis=-1),
+                                 chromaticity_threshold=0.2)
+    other, _ = estimate_lightness(img, method="grosse2009", mask=m & (obj.diffuse > 0).all(axis=-1),
+                                  chromaticity_threshold=np.inf)
+    assert np.allclose(r[m], want[m], rtol=1e-5) and not np.allclose(want[m], other[m], rtol=1e-3)
+    # a method without the option, a negative threshold and --colour on a file: one line, exit 1
+    capsys.readouterr()
+    assert main(["infer", "retinex", str(tmp_path / "box"), "--out", str(tmp_path / "x"),
+                 "--chromaticity-threshold", "0.2"]) == 1
+    err = capsys.readouterr().err
+    errors = [ln for ln in err.splitlines() if ln.startswith("pbrbench: error:")]
+    assert len(errors) == 1 and "chromaticity_threshold" in errors[0] and "Traceback" not in err
+    assert main(args + ["--out", str(tmp_path / "y"), "--chromaticity-threshold", "-1"]) == 1
+    assert "--chromaticity-threshold: -1 is negative" in capsys.readouterr().err
+    (tmp_path / "photo.exr").write_bytes((tmp_path / "c" / "reflectance.exr").read_bytes())
+    assert main(["infer", "retinex", str(tmp_path / "photo.exr"), "--colour", "--out", str(tmp_path / "z")]) == 1
+    assert "drop --colour" in capsys.readouterr().err
