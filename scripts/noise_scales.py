@@ -9,7 +9,8 @@ job's scene is rendered with each render seed ``1 .. --seeds`` (every scene file
 as the benchmark scores it (``run_job``, algorithm seed 0), and the sample standard deviation of
 each metric over the seeds is written with its degrees of freedom (seeds - 1), the algorithm's
 version, the scene's content hash at render seed 0, its noise hash (the content hash without the
-render seed: the key, so the scale holds at any render seed of the same scene) and the quality.  ``pbrbench run`` then takes
+render seed: the key, so the scale holds at any render seed of the same scene), the ground-truth
+format it was measured on (an entry of another format is ignored) and the quality.  ``pbrbench run`` then takes
 those scores' standard errors from this table instead of re-running the algorithm on the four
 delete-one-group replicates (:mod:`pbrbench.bench.uncertainty`, ``docs/uncertainty.md``).  The
 table is valid only for the algorithm version and scene content it names; anything else falls
@@ -92,6 +93,7 @@ def _measure(q, seeds, lib, task, tasks, algs, cache, entries) -> int:
 
     from pbrbench.bench.plan import plan
     from pbrbench.bench.source import GroundTruthSource
+    from pbrbench.render.groundtruth import GT_FORMAT
 
     jobs = [j for j in plan(tasks, q) if not j.extra_scenes and j.param("plot") is None   # scored jobs, not figures
             and any(x.applies(j.condition) and task._inverse_applies(j, q) and x.applies_to_job(j, q) for x in algs)]
@@ -113,7 +115,7 @@ def _measure(q, seeds, lib, task, tasks, algs, cache, entries) -> int:
             if len(v) != seeds or not all(math.isfinite(x) for x in v):
                 continue
             entries.append({"task": job.task, "scene": job.scene, "condition": job.condition, "scene_hash": hash0,
-                            "noise_hash": noise_hash, "algorithm": alg, "algorithm_version": version, "metric": metric,
+                            "noise_hash": noise_hash, "gt_format": GT_FORMAT, "algorithm": alg, "algorithm_version": version, "metric": metric,
                             "quality": q.name, "sd": float(np.std(v, ddof=1)), "dof": seeds - 1,
                             "mean": float(np.mean(v)), "render_seeds": list(range(1, seeds + 1))})
     return len(jobs)

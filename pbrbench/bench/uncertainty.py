@@ -68,7 +68,10 @@ def _values(scores) -> dict:
 def noise_scales(path: str = str(SCALES_FILE)) -> dict:
     """``{(task, scene, condition, noise_hash, algorithm, algorithm_version, metric, quality): (sd,
     dof, bias)}`` from the scales file (empty when it is missing; ``bias`` NaN where the entry
-    has none; an entry without a ``noise_hash`` names no scene and is left out)."""
+    has none; an entry without a ``noise_hash`` names no scene, and one measured on another
+    ground-truth format (another mask, other passes: ``gt_format``) is stale; both are left out)."""
+    from pbrbench.render.groundtruth import GT_FORMAT
+
     try:
         with open(path) as f:
             entries = json.load(f).get("entries", [])
@@ -76,7 +79,7 @@ def noise_scales(path: str = str(SCALES_FILE)) -> dict:
         return {}
     return {(e["task"], e["scene"], e["condition"], e["noise_hash"], e["algorithm"], e["algorithm_version"],
              e["metric"], e["quality"]): (float(e["sd"]), float(e["dof"]), float(e.get("bias", "nan")))
-            for e in entries if e.get("noise_hash")}
+            for e in entries if e.get("noise_hash") and e.get("gt_format") == GT_FORMAT}
 
 
 def _scale_key(d: dict, quality_name: str, noise_hashes: dict) -> tuple:

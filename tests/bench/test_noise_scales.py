@@ -12,6 +12,7 @@ import pytest
 from pbrbench.bench.uncertainty import SCALES_FILE, attach, noise_scales, replicate_scores
 from pbrbench.quality import get_quality
 from pbrbench.registry import Algorithm, builtin_registry
+from pbrbench.render.groundtruth import GT_FORMAT
 from pbrbench.tasks.base import JobResult
 from pbrbench.tasks.common.scoring import ScoreBook
 from tests.bench.test_uncertainty import ErrorTask, noisy_gt
@@ -123,6 +124,7 @@ def test_the_committed_table_is_well_formed():
     for e in entries:
         assert e["sd"] >= 0 and e["dof"] == len(e["render_seeds"]) - 1 >= 3 and 0 not in e["render_seeds"]
         assert e["quality"] in ("draft", "standard") and len(e["scene_hash"]) == 64 and len(e["noise_hash"]) == 64
+        assert e["gt_format"] == GT_FORMAT      # measured on the ground truths the run reads
     # a draft entry with a standard twin carries the difference of the two means as its bias
     std = {(e["scene"], e["condition"], e["algorithm"], e["algorithm_version"], e["metric"]): e
            for e in entries if e["quality"] == "standard"}
@@ -142,3 +144,13 @@ def test_a_draft_scale_with_a_bias_reports_it():
                     replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"),
                                      full=res.scores, scales=table))
     assert {(s["uncertainty"], s["bias"]) for s in scores if s["algorithm"] == "costly"} == {(0.25, 0.75)}
+
+
+def test_an_entry_of_another_ground_truth_format_or_without_a_noise_hash_is_ignored(tmp_path):
+    # a scale measured on other ground truths (another mask, other passes) is stale, even where
+    # the scene files and the algorithm are the same
+    entry = json.loads(SCALES_FILE.read_text())["entries"][0]
+    for change, kept in (({}, 1), ({"gt_format": GT_FORMAT - 1}, 0), ({"noise_hash": None}, 0)):
+        p = tmp_path / f"scales{len(change)}{kept}.json"
+        p.write_text(json.dumps({"entries": [{**entry, **change}]}))
+        assert len(noise_scales(str(p))) == kept
