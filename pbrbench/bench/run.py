@@ -108,15 +108,13 @@ def _check_scores(job, scores) -> list[dict]:
     return out
 
 
-def _noise_hashes(specs: dict, job) -> dict:
-    """``{scene hash: noise hash}`` of the job's scenes (:func:`pbrbench.bench.uncertainty.scaled_scores`):
-    the noise scales measured over render seeds hold at any render seed of the same content."""
-    out = {}
-    for n in (job.scene, *job.extra_scenes):
-        sp = specs.get(n)
-        if sp is not None and hasattr(sp, "noise_hash"):
-            out[sp.content_hash()] = sp.noise_hash()
-    return out
+def _noise_hashes(specs: dict, gts: dict) -> dict:
+    """``{scene hash: noise hash}`` of a job's ground truths (:func:`pbrbench.bench.uncertainty.scaled_scores`),
+    keyed by the scene hash each ground truth records, the one its scores carry: the noise scales
+    measured over render seeds hold at any render seed of the same content."""
+    from pbrbench.tasks.common.scoring import scene_hash
+
+    return {scene_hash(g): specs[n].noise_hash() for n, g in gts.items()}
 
 
 def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorithms, quality,
@@ -140,7 +138,7 @@ def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorit
             reps = {}
             if uncertainty and result.scores:
                 reps = replicate_scores(task, job, gts, seed=seed, algorithms=algorithms, quality=quality,
-                                        full=result.scores, noise_hashes=_noise_hashes(specs, job))
+                                        full=result.scores, noise_hashes=_noise_hashes(specs, gts))
         scores = attach(_check_scores(job, result.scores), reps)
         files, manifest = job_figures(result, job_dir)
         error = None

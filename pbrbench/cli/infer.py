@@ -363,10 +363,7 @@ def run_retinex(args) -> int:
         name, img, mask, enc = _rx_input(Path(args.image), args.gamma, args.mask, colour=args.colour)
     st.next(f"{img.shape[1]}x{img.shape[0]} ({enc})")
     opts = {"threshold": args.threshold} if args.threshold is not None else {}
-    if args.chromaticity_threshold is not None:
-        if args.chromaticity_threshold < 0:
-            raise UserError(f"--chromaticity-threshold: {args.chromaticity_threshold:g} is negative; give a log-gradient "
-                            ">= 0, or inf for luminance edges only")
+    if args.chromaticity_threshold is not None:   # checked by the method (>= 0 or inf), its message one line
         opts["chromaticity_threshold"] = args.chromaticity_threshold
     valid = (img > 0) if img.ndim == 2 else (img > 0).all(axis=-1)
     m = valid if mask is None else (mask & valid)

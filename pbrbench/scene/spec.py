@@ -679,11 +679,7 @@ class SceneSpec(Model):
 
     def content_hash(self) -> str:
         """sha256 of the canonical JSON, plus the bytes of every file the scene reads."""
-        h = hashlib.sha256(json.dumps(self.canonical(), sort_keys=True, separators=(",", ":")).encode())
-        for p in self.referenced_files():
-            with open(p, "rb") as f:
-                h.update(f.read())
-        return h.hexdigest()
+        return self._digest(self.canonical())
 
     def noise_hash(self) -> str:
         """:meth:`content_hash` without ``render.seed``: what the distribution of the scene's
@@ -692,7 +688,11 @@ class SceneSpec(Model):
         holds at any of them."""
         d = self.canonical()
         d["render"] = {k: v for k, v in d["render"].items() if k != "seed"}
-        h = hashlib.sha256(json.dumps(d, sort_keys=True, separators=(",", ":")).encode())
+        return self._digest(d)
+
+    def _digest(self, canonical: dict) -> str:
+        """sha256 of ``canonical`` as JSON, plus the bytes of every file the scene reads."""
+        h = hashlib.sha256(json.dumps(canonical, sort_keys=True, separators=(",", ":")).encode())
         for p in self.referenced_files():
             with open(p, "rb") as f:
                 h.update(f.read())

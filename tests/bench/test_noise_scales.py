@@ -105,8 +105,9 @@ def test_the_noise_hash_ignores_the_render_seed_and_nothing_else():
     assert other.noise_hash() == spec.noise_hash()
     twin = SceneLibrary().all()["ps_groove[albedo=0.7]"]        # another albedo: another noise
     assert twin.noise_hash() != spec.noise_hash()
-    job = type("J", (), {"scene": "a", "extra_scenes": ("b",)})()
-    assert _noise_hashes({"a": other, "b": twin}, job) == {other.content_hash(): spec.noise_hash(),
+    # keyed by the scene hash each ground truth records (the one its scores carry)
+    gts = {n: type("GT", (), {"meta": {"scene_hash": sp.content_hash()}})() for n, sp in (("a", other), ("b", twin))}
+    assert _noise_hashes({"a": other, "b": twin}, gts) == {other.content_hash(): spec.noise_hash(),
                                                           twin.content_hash(): twin.noise_hash()}
 
 

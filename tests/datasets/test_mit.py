@@ -141,8 +141,11 @@ def test_infer_retinex_reaches_the_colour_method_and_its_chromaticity_threshold(
     err = capsys.readouterr().err
     errors = [ln for ln in err.splitlines() if ln.startswith("pbrbench: error:")]
     assert len(errors) == 1 and "chromaticity_threshold" in errors[0] and "Traceback" not in err
-    assert main(args + ["--out", str(tmp_path / "y"), "--chromaticity-threshold", "-1"]) == 1
-    assert "--chromaticity-threshold: -1 is negative" in capsys.readouterr().err
+    for bad in ("-1", "nan"):
+        assert main(args + ["--out", str(tmp_path / "y"), "--chromaticity-threshold", bad]) == 1
+        err = capsys.readouterr().err
+        errors = [ln for ln in err.splitlines() if ln.startswith("pbrbench: error:")]
+        assert len(errors) == 1 and "chromaticity_threshold: must be a number >= 0" in errors[0] and "Traceback" not in err
     (tmp_path / "photo.exr").write_bytes((tmp_path / "c" / "reflectance.exr").read_bytes())
     assert main(["infer", "retinex", str(tmp_path / "photo.exr"), "--colour", "--out", str(tmp_path / "z")]) == 1
     assert "drop --colour" in capsys.readouterr().err
