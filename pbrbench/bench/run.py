@@ -111,10 +111,11 @@ def _check_scores(job, scores) -> list[dict]:
 def _noise_hashes(specs: dict, gts: dict) -> dict:
     """``{scene hash: noise hash}`` of a job's ground truths (:func:`pbrbench.bench.uncertainty.scaled_scores`),
     keyed by the scene hash each ground truth records, the one its scores carry: the noise scales
-    measured over render seeds hold at any render seed of the same content."""
+    measured over render seeds hold at any render seed of the same content.  A source whose specs
+    are not scene files (``GroundTruthSource.specs`` overridden, as the test fakes do) gives none."""
     from pbrbench.tasks.common.scoring import scene_hash
 
-    return {scene_hash(g): specs[n].noise_hash() for n, g in gts.items()}
+    return {scene_hash(g): specs[n].noise_hash() for n, g in gts.items() if hasattr(specs[n], "noise_hash")}
 
 
 def execute_job(task, job, specs: dict, source, seed: int, job_dir: str, algorithms, quality,
