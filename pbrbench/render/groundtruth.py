@@ -40,12 +40,13 @@ from pbrbench.render.variant import current_choice, mitsuba
 from pbrbench.scene import spec as S
 from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
-GT_FORMAT = 11  # bump when the content of a ground truth changes (invalidates caches)
+GT_FORMAT = 13  # bump when the content of a ground truth changes (invalidates caches; 12 was a reverted trial)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
 AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
 SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)
 SEED_MOD = 1 << 32   # Mitsuba's seeds are 32-bit
 OBJECT_ID_SEED = 0   # the one-sample object-id pass: the same for every render seed
+AOV_SEED = 0         # the geometry passes (AOVs, coverage, pure mask): the same for every render seed
 JK = "_jk"         # ``<name>_jk<i>``: the delete-one-group deviation of ``<name>`` for group ``i``
 
 
@@ -292,7 +293,15 @@ class _Renderer:
         groups with their own seeds, with the delete-one-group deviations of albedo, normals,
         position, depth, coverage and the pure mask (footprint averages are Monte Carlo estimates too: at a
         curved or tilted surface, and at a silhouette, they move with the samples); plus the
-        object ids and the pure-pixel mask."""
+        object ids and the pure-pixel mask.
+
+        The groups' seeds are fixed (:data:`AOV_SEED`), not the scene's ``render.seed``: the
+        geometry a score is measured on (its mask, normals, depth) is then a function of the scene
+        file and the quality, and a run at another render seed moves only the light transport.
+        The replicates still differ (each group has its own seed), so a score's standard error
+        keeps the footprint-sampling noise of the mask and normals.  With a seed-dependent mask,
+        one silhouette pixel in or out moved the flat baseline's height error, and with it every
+        SFS method that returns a flat surface, between render seeds (docs/uncertainty.md)."""
         mi = self.mi
         G = self.groups
         integ = {"type": "aov", "aovs": "alb:albedo,nn:sh_normal,pp:position,si:shape_index",
@@ -309,7 +318,7 @@ class _Renderer:
         M = np.array(scene.sensors()[0].world_transform().matrix, dtype=np.float64).reshape(4, 4)
         films = []
         for k in range(G):
-            mi.render(scene, seed=pass_seed(self.seed, 500, k), spp=per)
+            mi.render(scene, seed=pass_seed(AOV_SEED, 500, k), spp=per)
             films.append(_film_arrays(scene))
         obj_avg = [self._object_ids(scene, f["si.I"]) for f in films]  # footprint-averaged: mixed pixels -> -1
         del scene
@@ -323,7 +332,7 @@ class _Renderer:
                     v["bsdf"] = {"type": "diffuse", "reflectance": {"type": "rgb", "value": 1.0}}
             white = mi.load_dict(d, optimize=False)
             for k in range(G):
-                mi.render(white, seed=pass_seed(self.seed, 500, k), spp=per)
+                mi.render(white, seed=pass_seed(AOV_SEED, 500, k), spp=per)
                 films[k]["cov.A"] = _film_arrays(white)["w.R"]
             del white
         R = M[:3, :3] / np.linalg.norm(M[:3, :3], axis=0)  # columns: left, up, view direction
