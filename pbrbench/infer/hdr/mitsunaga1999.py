@@ -76,13 +76,42 @@ def _mn_fit(mom, R, degree, black: bool, m_first: float, monotone: bool):
             d0 = np.concatenate([d0, [m_first**N]])
         Ds = D / sc
         if np.any(Ds @ u + d0 < -1e-12):
-            from scipy.optimize import minimize
-
-            res = minimize(lambda v: v @ Gs @ v - 2 * hs @ v, u, jac=lambda v: 2 * (Gs @ v - hs),
-                           constraints=[{"type": "ineq", "fun": lambda v: Ds @ v + d0, "jac": lambda v: Ds}],
-                           method="SLSQP", options={"maxiter": 300, "ftol": 1e-16})
-            u = res.x
+            u = _convex_qp(Gs, hs, Ds, d0)
     return T @ (u / sc) + e
+
+
+def _convex_qp(G, h, A, b):
+    r"""The exact minimiser of ``v' G v - 2 h' v`` subject to ``A v + b >= 0`` (``G`` symmetric
+    positive semi-definite; directions with eigenvalues below ``1e-14`` of the largest are left
+    out, as the unconstrained ``lstsq`` leaves them), as a least-distance programme solved by
+    non-negative least squares (Lawson & Hanson 1974, *Solving Least Squares Problems*, ch. 23).
+
+    With ``G = V W V'`` and ``x = W^{1/2} V' (v - v_0)``, ``v_0 = G^+ h`` the unconstrained
+    minimiser, the objective is ``|x|^2`` plus a constant and the constraints are ``E x >= f``,
+    ``E = A V W^{-1/2}``, ``f = -b - A v_0``.  With ``u >= 0`` minimising
+    ``|[E'; f'] u - e_{n+1}|`` and ``r`` its residual, ``x = -r_{1..n} / r_{n+1}``.
+
+    Replaces SLSQP (5-15 ms and 50-150 iterations a fit, stopping above the optimum: its
+    objective was higher than this one's on every fit of ``pbrbench perf hdr``; this takes
+    about 0.1 ms).  An infeasible set (``r = 0``; the constraints here are never infeasible:
+    ``p(M) = M^N`` satisfies them) returns the unconstrained minimiser."""
+    from scipy.optimize import nnls
+
+    w, V = np.linalg.eigh(G)
+    keep = w > 1e-14 * max(float(w[-1]), 1e-300)
+    s, Vk = np.sqrt(w[keep]), V[:, keep]
+    v0 = Vk @ ((Vk.T @ h) / w[keep])
+    f = -b - A @ v0
+    if not np.any(f > 1e-12):
+        return v0
+    M = np.vstack([(A @ Vk / s).T, f[None, :]])
+    d = np.zeros(M.shape[0])
+    d[-1] = 1.0
+    u, _ = nnls(M, d, maxiter=50 * M.shape[1])
+    r = M @ u - d
+    if abs(r[-1]) <= 1e-300:
+        return v0
+    return v0 + Vk @ ((-r[:-1] / r[-1]) / s)
 
 
 def _mn_fit_free(mom, R, degree, black: bool):

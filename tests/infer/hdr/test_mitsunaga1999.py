@@ -95,6 +95,34 @@ def test_monotone_even_when_least_squares_is_not():
     assert cons[-1] + cons[:-1].sum() == pytest.approx(1.0)
 
 
+def test_the_constrained_fit_is_the_exact_minimiser():
+    """The monotone fit's quadratic programme: a closed-form case, and the KKT conditions
+    (stationarity with non-negative multipliers on the active constraints only) on random
+    convex problems of the fit's size, where the active set is not known in advance."""
+    from scipy.optimize import nnls
+
+    from pbrbench.infer.hdr.mitsunaga1999 import _convex_qp
+
+    # min |v - (1, 1)|^2 with v_0 <= 0.5: (0.5, 1)
+    v = _convex_qp(np.eye(2), np.ones(2), np.array([[-1.0, 0.0]]), np.array([0.5]))
+    np.testing.assert_allclose(v, [0.5, 1.0], atol=1e-12)
+    # a feasible unconstrained minimiser is returned as it is
+    np.testing.assert_allclose(_convex_qp(np.eye(2), np.ones(2), np.array([[-1.0, 0.0]]), np.array([2.0])), [1, 1])
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        n, m = 9, 66
+        B = rng.normal(size=(n, n))
+        G = B @ B.T + 0.1 * np.eye(n)
+        h, A, b = rng.normal(size=n), rng.normal(size=(m, n)), rng.uniform(0.1, 1.0, m)
+        v = _convex_qp(G, h, A, b)
+        slack = A @ v + b
+        assert slack.min() > -1e-9
+        active = slack < 1e-8
+        assert active.any()       # the unconstrained minimiser of these problems is infeasible
+        lam, res = nnls(A[active].T, 2 * (G @ v - h))      # 2 (G v - h) = A_active' lam, lam >= 0
+        assert res < 1e-7 * max(1.0, float(np.linalg.norm(G @ v - h)))
+
+
 def test_many_exposures_of_a_small_image_keep_their_ratios():
     # 14 exposures one stop apart of a 32 x 32 image, film response, no noise: the ratio update
     # that minimises the pair error (least squares) keeps every ratio at 2; averaging per-pixel
