@@ -29,20 +29,32 @@ def _brightness(a):
 
 
 def specular_mask_from_twin(radiance, diffuse_only, *, threshold: float = 0.1,
-                            reference: str = "peak", mask=None) -> np.ndarray:
+                            reference: str = "peak", mask=None, window: int = 1) -> np.ndarray:
     r"""Pixels where the specular component ``s = radiance - diffuse_only`` is significant.
 
-    With ``s`` and the diffuse ``d`` averaged over channels, a pixel is specular when
+    With ``s`` and the diffuse ``d`` averaged over channels (and, with ``window > 1``, ``s``
+    averaged over the ``window x window`` neighbourhood's pixels inside ``mask``), a pixel is
+    specular when
 
     - ``reference="peak"`` (default): ``s > threshold * max_mask(d)`` (a fraction of the
       brightest diffuse radiance; insensitive to dark pixels and Monte Carlo noise there);
     - ``reference="local"``: ``s > threshold * d`` (a fraction of the pixel's own diffuse);
     - ``reference="absolute"``: ``s > threshold`` in radiance units.
 
+    ``window``: an odd box size.  Both renders are Monte Carlo estimates, and where a broad
+    glossy lobe's tail lies near the level (rough plastic), the noise of single pixels decides
+    which cross it: on the standard render of ``specular_shapes`` the pixelwise mask was 406 and
+    362 pixels at two render seeds, in 222 components, and the two masks shared 193 pixels.  The
+    lobe is smooth and the noise is not, so a 3 x 3 mean (the specular task's choice) gives 193
+    pixels at both seeds, 22 of them different.
+
     Returns
     -------
     (H, W) bool.
     """
+    win = int(window) if isinstance(window, (int, np.integer)) and not isinstance(window, bool) else -1
+    if win < 1 or win % 2 == 0:
+        raise ValueError(f"window: must be an odd integer >= 1 (1 = no averaging), got {window!r}")
     rad = as_float_array(radiance, "radiance", ndim=(2, 3))
     dif = as_float_array(diffuse_only, "diffuse_only", ndim=(2, 3))
     if rad.shape != dif.shape:
@@ -57,6 +69,11 @@ def specular_mask_from_twin(radiance, diffuse_only, *, threshold: float = 0.1,
     check_finite(dif, "diffuse_only", where=m)
     s = _brightness(rad) - _brightness(dif)
     d = _brightness(dif)
+    if win > 1:
+        from scipy.ndimage import uniform_filter
+
+        w = uniform_filter(m.astype(np.float64), win, mode="constant")
+        s = uniform_filter(np.where(m, s, 0.0), win, mode="constant") / np.where(w > 0, w, 1.0)
     if reference == "peak":
         level = t * float(d[m].max())
     elif reference == "local":

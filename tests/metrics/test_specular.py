@@ -45,3 +45,35 @@ def test_mask_iou_and_removal_errors():
     assert np.isnan(removal_errors(est, truth, np.zeros((10, 10), bool))["inside_rmse"])
     with pytest.raises(ValueError, match="ring"):
         removal_errors(est, truth, a, ring=0)
+
+
+def test_windowed_true_mask_keeps_a_smooth_lobe_and_drops_single_noisy_pixels():
+    """A smooth specular lobe (a Gaussian of peak 1 on a diffuse of 1) plus isolated noisy pixels
+    above the level: pixelwise they enter the mask; with a 3 x 3 mean they do not, and the lobe's
+    mask is the disc where its 3 x 3 mean exceeds the level (the lobe is nearly linear across a
+    window, so that disc is within a pixel of the pixelwise one)."""
+    H = W = 64
+    y, x = np.mgrid[0:H, 0:W]
+    lobe = np.exp(-((x - 32.0) ** 2 + (y - 32.0) ** 2) / (2 * 6.0 ** 2))
+    diffuse = np.ones((H, W))
+    spikes = np.zeros((H, W))
+    spikes[5, 5] = spikes[50, 10] = spikes[10, 55] = 0.5       # 5x the level, one pixel each
+    rad = diffuse + lobe + spikes
+    raw = specular_mask_from_twin(rad, diffuse, threshold=0.1)
+    win = specular_mask_from_twin(rad, diffuse, threshold=0.1, window=3)
+    assert raw[5, 5] and raw[50, 10] and raw[10, 55]
+    assert not (win[5, 5] or win[50, 10] or win[10, 55])
+    lobe_only = specular_mask_from_twin(diffuse + lobe, diffuse, threshold=0.1)
+    r = 6.0 * np.sqrt(2 * np.log(10.0))                       # lobe = 0.1 at this radius
+    assert abs(int(win.sum()) - int(lobe_only.sum())) <= 2 * np.pi * r   # within a pixel of the disc's edge
+    assert win[32, 32] and not win[32, 32 + int(r) + 2]
+    # the window averages the object's pixels only: a lobe at the object's edge is not diluted by the background
+    obj = x < 34
+    edge = specular_mask_from_twin(rad, diffuse, threshold=0.1, mask=obj, window=3)
+    assert edge[32, 33] and not edge[32, 34]
+
+
+@pytest.mark.parametrize("window", [0, 2, -3, 1.5, True])
+def test_true_mask_window_must_be_odd_positive(window):
+    with pytest.raises(ValueError, match="window: must be an odd integer"):
+        specular_mask_from_twin(np.ones((4, 4)), np.ones((4, 4)), window=window)
