@@ -42,7 +42,7 @@ from pbrbench.scene.mitsuba_dict import scene_dict, shape_key
 
 GT_FORMAT = 13  # bump when the content of a ground truth changes (invalidates caches; 12 was a reverted trial)
 RADIANCE_LIKE = ("radiance", "direct", "diffuse_only", "direct_unoccluded")  # plus lightNN.radiance/direct
-AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations
+AOV_REPLICATED = ("albedo", "normals", "position", "depth", "coverage", "mask")  # AOVs with delete-one-group deviations (not in the replicates by default)
 SEED_STRIDE = 16   # render seeds of one pass: SEED_STRIDE * (seed * 1000 + pass offset) + group (< 16 groups)
 SEED_MOD = 1 << 32   # Mitsuba's seeds are 32-bit
 OBJECT_ID_SEED = 0   # the one-sample object-id pass: the same for every render seed
@@ -149,18 +149,26 @@ class GroundTruth:
         G = self.groups
         return bool(passes) and G >= 2 and all(f"{n}{JK}{G - 1}" in self.arrays for n in passes)
 
-    def replicate(self, group: int) -> GroundTruth:
+    def replicate(self, group: int, *, geometry: bool = False) -> GroundTruth:
         """The ground truth computed from every sample group but ``group`` (``0 .. G-1``): every
-        array with deviations (rendered passes, albedo, normals, depth, coverage, the pure mask) is
-        replaced by ``X + X_jk{group}``; ``indirect`` and ``unoccluded_fraction`` are rebuilt from
-        the replicate's own passes; ids, position and metadata are shared.  Its arrays have
-        ``G / (G - 1)`` times the variance of the full ground truth's."""
+        rendered pass with deviations is replaced by ``X + X_jk{group}``; ``indirect`` and
+        ``unoccluded_fraction`` are rebuilt from the replicate's own passes; ids, position and
+        metadata are shared.  Its passes have ``G / (G - 1)`` times the variance of the full
+        ground truth's.
+
+        The geometry (albedo, normals, depth, coverage and the pure mask, :data:`AOV_REPLICATED`)
+        is the full ground truth's unless ``geometry``: its sample groups take fixed seeds
+        (:data:`AOV_SEED`), so a run at another render seed has the same geometry, and a standard
+        error that is to say how far a score moves when the scene is rendered again must not
+        include it.  ``geometry=True`` replaces it by its own replicate too (its deviations are
+        kept in the cache), which measures the footprint-sampling error of the geometry itself
+        (the difference of a score's spread with and without it; docs/uncertainty.md)."""
         G = self.groups
         if not (isinstance(group, (int, np.integer)) and 0 <= group < G):
             raise ValueError(f"group: an integer in 0..{G - 1} (the ground truth has {G} sample groups), got {group!r}")
         arrays = {}
         for n in self.base_names:
-            d = self.arrays.get(f"{n}{JK}{group}")
+            d = None if (n in AOV_REPLICATED and not geometry) else self.arrays.get(f"{n}{JK}{group}")
             arrays[n] = self.arrays[n] if d is None else (self.arrays[n] + d).astype(np.float32)
         if "mask" in arrays:
             arrays["mask"] = (arrays["mask"] > 0.5).astype(np.float32)
@@ -185,16 +193,19 @@ class GroundTruth:
         self.reads.add("mask")
         return self.arrays["mask"] > 0.5
 
-    def varies(self, group: int, names=None) -> bool:
-        """Whether the replicate without ``group`` differs from this ground truth in any of
-        ``names`` (default: the arrays read since the last :meth:`reads.clear`): a replicate
-        that does not is the same input, so a job that read only those arrays scores the same on
-        it (:mod:`pbrbench.bench.uncertainty` then reuses the full score)."""
+    def varies(self, group: int, names=None, *, geometry: bool = False) -> bool:
+        """Whether the replicate without ``group`` (:meth:`replicate`, with the same
+        ``geometry``) differs from this ground truth in any of ``names`` (default: the arrays
+        read since the last :meth:`reads.clear`): a replicate that does not is the same input, so
+        a job that read only those arrays scores the same on it (:mod:`pbrbench.bench.uncertainty`
+        then reuses the full score)."""
         names = set(self.reads if names is None else names)
         base = set()
         for n in names:
             n = n[:-3] if n.endswith("_sd") else n
             base |= set(DERIVED.get(n, (n,)))
+        if not geometry:
+            base -= set(AOV_REPLICATED)
         for n in base:
             d = self.arrays.get(f"{n}{JK}{group}")
             if d is not None and np.any(d != 0):
@@ -298,8 +309,9 @@ class _Renderer:
         The groups' seeds are fixed (:data:`AOV_SEED`), not the scene's ``render.seed``: the
         geometry a score is measured on (its mask, normals, depth) is then a function of the scene
         file and the quality, and a run at another render seed moves only the light transport.
-        The replicates still differ (each group has its own seed), so a score's standard error
-        keeps the footprint-sampling noise of the mask and normals.  With a seed-dependent mask,
+        The groups still differ from each other (each has its own seed); their deviations are
+        kept, but the replicates a standard error comes from use the full geometry
+        (:meth:`GroundTruth.replicate`).  With a seed-dependent mask,
         one silhouette pixel in or out moved the flat baseline's height error, and with it every
         SFS method that returns a flat surface, between render seeds (docs/uncertainty.md)."""
         mi = self.mi

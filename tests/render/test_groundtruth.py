@@ -146,8 +146,9 @@ def test_scalar_variant_ground_truth_has_the_same_mask_as_llvm(tmp_path):
 @pytest.mark.render
 def test_the_geometry_does_not_move_with_the_render_seed():
     """Two render seeds: the same mask, normals, depth and coverage bit for bit (the AOV groups
-    take fixed seeds), other radiance; and within one render the replicates' geometry still
-    differs (each group its own seed), so the standard error keeps the footprint-sampling noise."""
+    take fixed seeds), other radiance.  Within one render the geometry's sample groups differ
+    (each its own seed) and their deviations are kept, but a replicate has the full geometry
+    unless asked for its own (``geometry=True``): a re-render does not move it."""
     from pbrbench.quality import DRAFT
     from pbrbench.render.groundtruth import render_ground_truth
 
@@ -161,3 +162,12 @@ def test_the_geometry_does_not_move_with_the_render_seed():
     # depths, footprint averages across the edge, differ
     assert any(np.abs(a[f"depth_jk{i}"]).max() > 0 for i in range(a.meta["groups"]))
     assert any(np.abs(a[f"normals_jk{i}"]).max() > 0 for i in range(a.meta["groups"]))
+    moved = [i for i in range(a.groups) if np.abs(a[f"normals_jk{i}"]).max() > 0]
+    for i in range(a.groups):
+        rep = a.replicate(i)
+        assert np.array_equal(rep["normals"], a["normals"]) and np.array_equal(rep["mask"], a["mask"])
+        assert not np.array_equal(rep["light00.radiance"], a["light00.radiance"])
+        assert a.varies(i, ["light00.radiance"]) and not a.varies(i, ["normals", "mask", "depth"])
+    i = moved[0]
+    assert not np.array_equal(a.replicate(i, geometry=True)["normals"], a["normals"])
+    assert a.varies(i, ["normals"], geometry=True)
