@@ -13,6 +13,8 @@ apart.  Cases:
   pixels have a signal-to-noise ratio below 1 in the longest exposure);
 - ``gamma2.2``: a gamma-2.2 camera without noise (the case of Mitsunaga & Nayar's polynomial);
 - ``3x3stops``: 3 exposures 3 stops apart, no noise;
+- ``film 3x3 read+shot``: the film-like response (toe and shoulder) on 3 exposures 3 stops apart,
+  read and shot noise: a short bracket whose toe and shoulder few pixels tie together;
 - ``clipped``: highlight disks at 1e4, clipped even in the shortest exposure (the error is
   measured on the pixels not saturated in every exposure; ``invalid`` is over all pixels).
 
@@ -59,7 +61,7 @@ from pbrbench.perf import row
 
 BENCH = "hdr"
 PEERS = {"opencv": ("cv2", "opencv-python-headless"), "colour_hdri": ("colour_hdri", "colour-hdri")}
-NOISY = ("read_noise", "read+shot", "film read+shot", "dark read+shot")
+NOISY = ("read_noise", "read+shot", "film read+shot", "dark read+shot", "film 3x3 read+shot")
 
 
 def synthetic_radiance(size: int = 512, *, highlight: float = 80.0, seed: int = 0,
@@ -104,6 +106,7 @@ def _conditions(size: int):
         ("dark read+shot", dark, Camera(**cam, **noise), t7),
         ("gamma2.2", base, Camera("gamma", bit_depth=8), t7),
         ("3x3stops", base, Camera(**cam), t3),
+        ("film 3x3 read+shot", base, Camera("film", bit_depth=8, **noise), t3),
         ("clipped", synthetic_radiance(size, highlight=1e4), Camera(**cam), t7),
     ]
 
