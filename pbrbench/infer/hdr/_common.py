@@ -12,7 +12,6 @@ Calibration (:mod:`~pbrbench.infer.hdr.debevec1997`, :mod:`~pbrbench.infer.hdr.r
 from __future__ import annotations
 
 import numpy as np
-from scipy.optimize import isotonic_regression
 
 from pbrbench.checks import as_array, as_float_array, check_int, check_seed
 from pbrbench.infer.hdr.response import CameraResponse
@@ -247,6 +246,9 @@ def finalise(logx: np.ndarray, counts: np.ndarray | None) -> np.ndarray:
                 f"images: channel {c} has fewer than 2 usable pixel levels; the bracket is clipped or flat. "
                 "Use more exposures or exposures that cover the scene")
         w = np.ones(ok.sum()) if counts is None else np.maximum(counts[ok, c], 1e-3)
+        # not at import: the CLI's methods tables import this module
+        from scipy.optimize import isotonic_regression
+
         v[ok] = isotonic_regression(v[ok], weights=w, increasing=True).x
         v = _extrapolate(v, ok)
         v = np.maximum.accumulate(v + ramp)

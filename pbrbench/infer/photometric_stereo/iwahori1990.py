@@ -35,7 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage, optimize
+from scipy import ndimage
 
 from pbrbench.checks import (
     as_float_array,
@@ -303,6 +303,10 @@ def photometric_stereo_iwahori1990(images, lights, *, mask=None, intensities=Non
         if offset == "search":
             def f(delta, znew=znew, used=used, dom_flat=dom_flat, z=z):
                 return near.cost(np.where(dom_flat, znew + delta, z), used)[0]
+
+            # not at import: the CLI's methods tables import this package
+            from scipy import optimize
+
             shift = float(optimize.minimize_scalar(f, bounds=(-span, span), method="bounded",
                                                    options={"xatol": tol * scale}).x)
             znew = np.where(dom_flat, znew + shift, z)
