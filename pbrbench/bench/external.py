@@ -57,7 +57,7 @@ from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
-FORMAT = "pbrbench-export/3"    # 2: three other noise seeds (replicates/noise, noise2, noise3); 3: the task's count (hdr: 7)
+FORMAT = "pbrbench-export/2"    # 2: the task's other noise seeds (replicates/noise, noise2, ...; three for every built-in task)
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
 MAX_PREDICTION_BYTES = MAX_DATA_BYTES   # largest array a prediction file may hold (as float64), as a scene data file

@@ -239,12 +239,6 @@ class HDRTask(Task):
              "however it arose), so this task has no local/area/global axis: its conditions are the "
              "camera's (noise, bracket, clipping), and the reference is the noise-free bracket.")
 
-    # every job depends on the seed, and for most of its cells the seed's part is the larger part
-    # of the standard error (the camera noise, the calibrations' pixel samples, and under
-    # rough_times the seven exposure-time errors, a score of seven random numbers): seven other
-    # seeds, not three, so that part has 7 degrees of freedom (docs/uncertainty.md)
-    noise_seed_count = 7
-
     def seed_dependent(self, job) -> bool:
         return True  # the camera's noise and the calibrations' pixel samples follow the seed
 
