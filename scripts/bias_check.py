@@ -1,12 +1,18 @@
 """Does the jackknife bias correction move a score toward the value at more samples?
 
-    python scripts/bias_check.py [--factor 4] [--cache DIR] [--scene TASK=SCENE ...]
+    python scripts/bias_check.py [--factor 4] [--geometry same|own] [--cache DIR] [--scene TASK=SCENE ...]
 
 Renders the scenes at draft quality and at ``factor`` times draft's samples (same resolution),
 scores every job of the tasks on them, and for every headline-metric cell (job, algorithm) whose
 two values differ beyond float32 rounding counts whether the bias-corrected 1x value
 ``v - bias`` is closer to the ``factor``x value than the uncorrected one.  Prints the fraction
 and the cells.
+
+``--geometry same`` (default): the ``factor``x ground truth gets the 1x one's geometry (albedo,
+normals, depth, coverage, pure mask, object ids), so the two differ in their light transport
+only, which is what the jackknife bias estimates (its replicates share the geometry,
+docs/science.md §8).  ``own``: each keeps its own; the difference then also holds the
+geometry's footprint sampling at 1x against ``factor``x samples, a bias that no replicate sees.
 """
 
 from __future__ import annotations
@@ -19,6 +25,8 @@ import sys
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--factor", type=float, default=4.0)
+    ap.add_argument("--geometry", choices=["same", "own"], default="same",
+                    help="the factor-x ground truth with the 1x geometry (same) or its own (own)")
     ap.add_argument("--cache", default=None)
     ap.add_argument("--scene", action="append", default=None, metavar="TASK=SCENE")
     a = ap.parse_args(argv)
@@ -50,11 +58,31 @@ def main(argv=None) -> int:
                     "name": f"draft{a.factor:g}x", "factor": float(a.factor),
                     "description": f"draft resolution, {a.factor:g}x draft's samples (scripts/bias_check.py)"})
     Q.PRESETS[more.name] = more      # the render layer looks profiles up by name
+    from pbrbench.render.groundtruth import AOV_REPLICATED, JK
+
+    class SameGeometry(GroundTruthSource):
+        """The ground truths of ``quality`` with the geometry of ``base``'s (same resolution)."""
+
+        def __init__(self, quality, base, **kw):
+            super().__init__(quality, **kw)
+            self.base = base
+
+        def load(self, spec):
+            gt = super().load(spec)
+            g1 = self.base.load(spec)
+            for name in list(gt.arrays):
+                if name.split(JK)[0] in AOV_REPLICATED or name == "object_id":
+                    gt.arrays[name] = g1.arrays[name]
+            return gt
+
     tasks = load_tasks(sorted({t for t, _ in pairs}))
     reg = builtin_registry(tasks)
     vals = {}
+    cache = RenderCache(a.cache) if a.cache else None
+    base = GroundTruthSource(draft, cache=cache)
     for q in (draft, more):
-        src = GroundTruthSource(q, cache=RenderCache(a.cache) if a.cache else None)
+        src = base if q is draft else (SameGeometry(q, base, cache=cache) if a.geometry == "same"
+                                       else GroundTruthSource(q, cache=cache))
         for tname, scene in pairs:
             task = tasks[tname]
             for job in [j for j in task.jobs(draft) if j.scene.split(":")[0] == scene and j.param("plot") is None]:
