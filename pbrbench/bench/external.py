@@ -57,7 +57,7 @@ from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
-FORMAT = "pbrbench-export/2"    # 2: the task's other noise seeds (replicates/noise, noise2, ...; three for every built-in task)
+FORMAT = "pbrbench-export/2"    # 2: three other noise seeds (replicates/noise, noise2, noise3)
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
 MAX_PREDICTION_BYTES = MAX_DATA_BYTES   # largest array a prediction file may hold (as float64), as a scene data file
@@ -197,7 +197,7 @@ def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
     ground truth (``""``), each delete-one-group replicate (``replicates/<i>``) and, where the
     inputs depend on the seed, the other seeds (``replicates/noise``, ``replicates/noise2``, ...):
     the sets :mod:`pbrbench.bench.uncertainty` scores for the standard error."""
-    from pbrbench.bench.uncertainty import noise_seed_count, noise_seeds
+    from pbrbench.bench.uncertainty import noise_seeds
 
     sets = [("", gts, seed)]
     groups = {getattr(g, "groups", 0) for g in gts.values()}
@@ -205,7 +205,7 @@ def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
         (G,) = groups
         sets += [(f"replicates/{i}", {n: g.replicate(i) for n, g in gts.items()}, seed) for i in range(G)]
     if task.seed_dependent(job):
-        sets += [(f"replicates/noise{k + 1 if k else ''}", gts, sk) for k, sk in enumerate(noise_seeds(seed, noise_seed_count(task)))]
+        sets += [(f"replicates/noise{k + 1 if k else ''}", gts, sk) for k, sk in enumerate(noise_seeds(seed))]
     return sets
 
 

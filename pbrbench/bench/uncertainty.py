@@ -9,10 +9,9 @@ seed, gives ``G`` replicate values ``v_(i)`` of each metric, and the delete-one-
 of freedom and its render-noise bias from the same renders.
 
 Where the job's inputs also depend on the seed (injected camera noise, random pixel sampling:
-:meth:`pbrbench.tasks.base.Task.seed_dependent`), the job is scored ``K`` more times on the full
-ground truth with other seeds, ``v_{n,k}`` (``K`` the task's
-:attr:`~pbrbench.tasks.base.Task.noise_seed_count`, :data:`NOISE_SEEDS` by default), and the
-sample variance of ``v`` and those values (``K`` degrees of freedom) is added.
+:meth:`pbrbench.tasks.base.Task.seed_dependent`), the job is scored :data:`NOISE_SEEDS` more times
+on the full ground truth with other seeds, ``v_{n,k}``, and the sample variance of ``v`` and those
+values (:data:`NOISE_SEEDS` degrees of freedom) is added.
 
 Noise scales measured over independent render seeds (:data:`SCALES_FILE`, written by
 ``scripts/noise_scales.py``) replace the replicates of the algorithms they cover: where every
@@ -48,18 +47,9 @@ NOISE_SEED_OFFSET = 1_000_003     # other seed k (1, 2, ...) of a seed-dependent
 NOISE_SEEDS = 3                   # other seeds of a seed-dependent job: the seed's part of its SE on 3 dof
 
 
-def noise_seeds(seed: int, count: int = NOISE_SEEDS) -> list[int]:
-    """The ``count`` other seeds a seed-dependent job scored with ``seed`` is also scored with
-    (a task's :attr:`~pbrbench.tasks.base.Task.noise_seed_count`)."""
-    return [seed + k * NOISE_SEED_OFFSET for k in range(1, count + 1)]
-
-
-def noise_seed_count(task) -> int:
-    """The task's number of other noise seeds (:data:`NOISE_SEEDS` for a task that names none)."""
-    n = getattr(task, "noise_seed_count", NOISE_SEEDS)
-    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
-        raise ValueError(f"task {getattr(task, 'name', task)!r}: noise_seed_count must be an integer >= 1, got {n!r}")
-    return n
+def noise_seeds(seed: int) -> list[int]:
+    """The other seeds a seed-dependent job scored with ``seed`` is also scored with."""
+    return [seed + k * NOISE_SEED_OFFSET for k in range(1, NOISE_SEEDS + 1)]
 
 
 def score_key(s: dict) -> tuple:
@@ -162,7 +152,7 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
         out["replicates"] = reps
     if seed_dependent:
         noise: dict = {}
-        seeds = noise_seeds(seed, noise_seed_count(task))
+        seeds = noise_seeds(seed)
         for k, sk in enumerate(seeds):
             vals = _values(task.run_job(job, gts, seed=sk, algorithms=algorithms, quality=quality).scores)
             _drop_failed(vals)

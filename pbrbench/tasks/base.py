@@ -160,14 +160,9 @@ class Task:
         except (ValueError, OSError):
             return None
 
-    #: other seeds a seed-dependent job is also scored with (the seed's part of its standard error
-    #: on that many degrees of freedom, :mod:`pbrbench.bench.uncertainty`)
-    noise_seed_count: int = 3
-
     def seed_dependent(self, job: Job) -> bool:
-        """Whether the job's inputs depend on the seed (then its standard error includes
-        :attr:`noise_seed_count` other seeds, :mod:`pbrbench.bench.uncertainty`): a noise modifier
-        with a positive level."""
+        """Whether the job's inputs depend on the seed (then its standard error includes a second
+        seed, :mod:`pbrbench.bench.uncertainty`): a noise modifier with a positive level."""
         _, mods = parse_condition(job.condition)
         return any(v > 0 for k, v in mods.items() if "noise" in k)
 

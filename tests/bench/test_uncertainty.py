@@ -167,23 +167,6 @@ def test_seed_dependent_jobs_add_the_noise_seed_part():
     w = sc[("woodham1980", "normal_mean_deg")]
     assert len(w["rep_noise"]) == NOISE_SEEDS and len(set(w["rep_noise"] + [w["value"]])) == NOISE_SEEDS + 1
     assert 0 < w["uncertainty"] < 0.2 * w["value"] and w["dof"] == NOISE_SEEDS
-    # a task with a count of its own: that many other seeds, that many dof, that many export folders
-    from pbrbench.bench.external import input_sets
-    from pbrbench.bench.uncertainty import noise_seed_count
-
-    assert noise_seed_count(TASK) == NOISE_SEEDS
-
-    import copy
-
-    five = copy.copy(TASK)
-    five.noise_seed_count = 5
-    reps5 = replicate_scores(five, job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
-    w5 = {(s["algorithm"], s["metric"]): s for s in attach([s.as_dict() for s in res.scores], reps5)}[("woodham1980", "normal_mean_deg")]
-    assert len(w5["rep_noise"]) == 5 and w5["dof"] == 5 and w5["rep_noise"][:NOISE_SEEDS] == w["rep_noise"]
-    assert [d for d, _, _ in input_sets(five, job, {"s": gt}, 0)][1:] == ["replicates/noise"] + [f"replicates/noise{k}" for k in range(2, 6)]
-    five.noise_seed_count = 0
-    with pytest.raises(ValueError, match="noise_seed_count must be an integer >= 1"):
-        replicate_scores(five, job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
 
 
 def test_the_noise_seed_part_of_a_difference_is_paired():
