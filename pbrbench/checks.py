@@ -76,6 +76,8 @@ def as_float_array(x, name: str, *, ndim: Iterable[int] | None = None, dtype=np.
 
 def check_finite(arr: np.ndarray, name: str, *, where: np.ndarray | None = None) -> None:
     """Raise ``ValueError`` if ``arr`` holds NaN or infinite values (inside ``where`` if given)."""
+    if arr.dtype.kind in "biu" or np.isfinite(arr).all():
+        return                      # the common case: no gather of the masked values needed
     vals = arr if where is None else arr[where]
     bad = ~np.isfinite(vals)
     if np.any(bad):

@@ -43,31 +43,58 @@ def _pair(est, true, mask, names=("est", "true")):
 
 
 def _window_sums(a: np.ndarray, window: int, step: int) -> np.ndarray:
-    """Sums of ``a`` (H, W, C) over windows ``[i:i+window, j:j+window]`` at i, j = 0, step, ..."""
+    """Sums of ``a`` (H, W, C) over windows ``[i:i+window, j:j+window]`` at i, j = 0, step, ...
+
+    When ``step`` divides ``window`` (the default ``step = window // 2`` of an even window), the
+    sums are built from the ``step`` x ``step`` block sums (a reshape, no running sums over the
+    whole image); otherwise from the summed-area table."""
+    ni = (a.shape[0] - window) // step + 1
+    nj = (a.shape[1] - window) // step + 1
+    if window % step == 0:
+        r = window // step
+        nb_i, nb_j = ni - 1 + r, nj - 1 + r
+        blocks = a[:nb_i * step, :nb_j * step].reshape(nb_i, step, nb_j, step, a.shape[2]).sum((1, 3))
+        out = np.zeros((ni, nj, a.shape[2]))
+        for di in range(r):
+            for dj in range(r):
+                out += blocks[di:di + ni, dj:dj + nj]
+        return out
     s = np.zeros((a.shape[0] + 1, a.shape[1] + 1, a.shape[2]))
     s[1:, 1:] = a.cumsum(0).cumsum(1)
-    i0 = np.arange(0, a.shape[0] - window + 1, step)
-    j0 = np.arange(0, a.shape[1] - window + 1, step)
+    i0 = np.arange(ni) * step
+    j0 = np.arange(nj) * step
     i1, j1 = i0 + window, j0 + window
     return (s[i1][:, j1] - s[i0][:, j1] - s[i1][:, j0] + s[i0][:, j0])
 
 
 def _local_terms(est, true, mask, window, step):
     """Per-window (ssq, energy) arrays of shape (ni, nj, C)."""
-    e, t, m = _pair(est, true, mask)
+    return _local_terms_checked(*_pair(est, true, mask), window, step)
+
+
+def _local_terms_checked(e, t, m, window, step):
+    """:func:`_local_terms` of arrays :func:`_pair` has checked and masked (zero outside ``m``)."""
     window, step = int(window), int(step)
     if window < 1 or step < 1:
         raise ValueError(f"window/step: must be positive integers, got window={window}, step={step}")
     if window > min(m.shape):
         raise ValueError(f"window: {window} exceeds the image size {m.shape}; use a smaller window")
-    mf = m.astype(float)[..., None]
-    stt = _window_sums(mf * t * t, window, step)
-    ste = _window_sums(mf * t * e, window, step)
-    see = _window_sums(mf * e * e, window, step)
+    # e and t are zero outside the mask, so the products need no mask factor
+    stt = _window_sums(t * t, window, step)
+    ste = _window_sums(t * e, window, step)
+    see = _window_sums(e * e, window, step)
     ok = see > _ALPHA_MIN_ENERGY
     alpha = np.where(ok, ste / np.where(ok, see, 1.0), 0.0)
     ssq = np.maximum(stt - 2 * alpha * ste + alpha * alpha * see, 0.0)
     return ssq, stt
+
+
+def _lmse_checked(e, t, m, window, step) -> float:
+    ssq, stt = _local_terms_checked(e, t, m, window, step)
+    total = stt.sum()
+    if total <= 0:
+        raise ValueError("true: zero energy inside the mask (all values 0); LMSE is undefined")
+    return float(ssq.sum() / total)
 
 
 def lmse(est, true, *, mask=None, window: int = 20, step: int | None = None) -> float:
@@ -106,11 +133,7 @@ def lmse(est, true, *, mask=None, window: int = 20, step: int | None = None) -> 
     baseline evaluations for intrinsic image algorithms", ICCV 2009.
     """
     step = int(window) // 2 if step is None else step
-    ssq, stt = _local_terms(est, true, mask, window, step)
-    total = stt.sum()
-    if total <= 0:
-        raise ValueError("true: zero energy inside the mask (all values 0); LMSE is undefined")
-    return float(ssq.sum() / total)
+    return _lmse_checked(*_pair(est, true, mask), window, step)
 
 
 def lmse_map(est, true, *, mask=None, window: int = 20, step: int | None = None) -> np.ndarray:
@@ -142,7 +165,10 @@ def si_mse(est, true, *, mask=None) -> float:
     One global least-squares scale ``alpha = sum m t e / sum m e^2`` per channel (0 if the
     estimate is zero); the mean runs over masked pixels and channels.  Not normalised.
     """
-    e, t, m = _pair(est, true, mask)
+    return _si_mse_checked(*_pair(est, true, mask))
+
+
+def _si_mse_checked(e, t, m) -> float:
     see = (e * e).sum((0, 1))
     alpha = np.where(see > 0, (t * e).sum((0, 1)) / np.where(see > 0, see, 1.0), 0.0)
     err = (t - alpha * e)[m]
@@ -157,6 +183,20 @@ def albedo_abs_error(est, true, *, mask=None) -> float:
     """
     e, t, m = _pair(est, true, mask)
     return float(np.mean(np.abs(e - t)[m]))
+
+
+def _group_medians(vals: np.ndarray, groups: np.ndarray, n_groups: int) -> np.ndarray:
+    """Per group ``g`` (``0 .. n_groups - 1``, each non-empty) and column, the median of
+    ``vals[groups == g]`` (``vals`` (n, C)): the value ``np.median`` gives (the middle value,
+    or the mean of the two middle ones), from one sort per column."""
+    counts = np.bincount(groups, minlength=n_groups)
+    start = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    lo, hi = start + (counts - 1) // 2, start + counts // 2
+    out = np.empty((n_groups, vals.shape[1]))
+    for c in range(vals.shape[1]):
+        sv = vals[np.lexsort((vals[:, c], groups)), c]
+        out[:, c] = (sv[lo] + sv[hi]) / 2.0
+    return out
 
 
 def ratio_errors(est, true, labels, *, mask=None, erode: int = 2) -> np.ndarray:
@@ -185,11 +225,12 @@ def ratio_errors(est, true, labels, *, mask=None, erode: int = 2) -> np.ndarray:
     k = 2 * int(erode) + 1
     interior = m & (ndimage.maximum_filter(lab, k, mode="nearest")
                     == ndimage.minimum_filter(lab, k, mode="nearest"))
-    ids = np.unique(lab[interior])
+    ids, group = np.unique(lab[interior], return_inverse=True)
     if ids.size < 2:
         raise ValueError("labels: fewer than two patches keep pixels after erosion; lower erode")
-    em = np.array([np.median(e[interior & (lab == i)], axis=0) for i in ids])  # (n, C)
-    tm = np.array([np.median(t[interior & (lab == i)], axis=0) for i in ids])
+    group = group.ravel()
+    em = _group_medians(e[interior], group, ids.size)  # (n, C)
+    tm = _group_medians(t[interior], group, ids.size)
     a, b = np.triu_indices(ids.size, 1)
     with np.errstate(divide="ignore", invalid="ignore"):
         err = (em[a] / em[b]) / (tm[a] / tm[b]) - 1.0
@@ -201,10 +242,14 @@ def lightness_scores(refl, shad, refl_true, shad_true, *, mask, labels=None, win
     ``intrinsic_lmse``, ``si_mse``, ``albedo_abs_err`` and, when patch ``labels`` are given and
     at least two patches survive the erosion, ``ratio_err_max`` / ``ratio_err_median`` (the
     largest and median absolute reflectance-ratio errors, :func:`ratio_errors` with ``erode=1``)."""
-    out = {"lmse": lmse(refl, refl_true, mask=mask, window=window),
-           "intrinsic_lmse": intrinsic_lmse(refl, shad, refl_true, shad_true, mask=mask, window=window),
-           "si_mse": si_mse(refl, refl_true, mask=mask),
-           "albedo_abs_err": albedo_abs_error(refl, refl_true, mask=mask)}
+    step = int(window) // 2
+    er, tr, m = _pair(refl, refl_true, mask)
+    lmse_r = _lmse_checked(er, tr, m, window, step)
+    lmse_s = _lmse_checked(*_pair(shad, shad_true, mask), window, step)
+    out = {"lmse": lmse_r,
+           "intrinsic_lmse": 0.5 * (lmse_s + lmse_r),
+           "si_mse": _si_mse_checked(er, tr, m),
+           "albedo_abs_err": float(np.mean(np.abs(er - tr)[m]))}
     if labels is not None:
         try:
             r = np.abs(ratio_errors(refl, refl_true, labels, mask=mask, erode=1))

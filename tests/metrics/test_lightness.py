@@ -36,6 +36,40 @@ def test_lmse_matches_mit_loop():
     ref = _mit_local_error(t, e, mask, 20, 10)
     assert lmse(e, t, mask=mask) == pytest.approx(ref, rel=1e-10)
     assert lmse(e, t, mask=mask, window=8, step=3) == pytest.approx(_mit_local_error(t, e, mask, 8, 3), rel=1e-10)
+    # the block-sum path (step divides window) with 3 and 4 blocks a side, and a window of one block
+    for w, st in ((9, 3), (12, 3), (5, 5)):
+        assert lmse(e, t, mask=mask, window=w, step=st) == pytest.approx(_mit_local_error(t, e, mask, w, st), rel=1e-10)
+
+
+def test_lightness_scores_are_the_single_metrics():
+    from pbrbench.metrics.lightness import lightness_scores
+
+    rng = np.random.default_rng(3)
+    t = rng.uniform(0.1, 1, (40, 52, 3))
+    e = t * rng.uniform(0.7, 1.3, t.shape)
+    s_t, s_e = rng.uniform(0.2, 1, t.shape), rng.uniform(0.2, 1, t.shape)
+    mask = rng.random(t.shape[:2]) > 0.1
+    lab = (np.arange(40)[:, None] // 10 * 10 + np.arange(52)[None, :] // 13).astype(int)
+    out = lightness_scores(e, s_e, t, s_t, mask=mask, labels=lab, window=12)
+    assert out["lmse"] == pytest.approx(lmse(e, t, mask=mask, window=12), rel=1e-12)
+    assert out["intrinsic_lmse"] == pytest.approx(intrinsic_lmse(e, s_e, t, s_t, mask=mask, window=12), rel=1e-12)
+    assert out["si_mse"] == si_mse(e, t, mask=mask)
+    assert out["albedo_abs_err"] == albedo_abs_error(e, t, mask=mask)
+    r = np.abs(ratio_errors(e, t, lab, mask=mask, erode=1))
+    assert out["ratio_err_max"] == r.max() and out["ratio_err_median"] == np.median(r)
+
+
+def test_group_medians_are_numpy_medians():
+    from pbrbench.metrics.lightness import _group_medians
+
+    rng = np.random.default_rng(5)
+    g = rng.integers(0, 7, 500)
+    g[:7] = np.arange(7)                           # every group present; counts odd and even
+    v = rng.normal(size=(500, 2))
+    got = _group_medians(v, g, 7)
+    want = np.array([np.median(v[g == k], axis=0) for k in range(7)])
+    assert np.array_equal(got, want)
+    assert {int((g == k).sum()) % 2 for k in range(7)} == {0, 1}
 
 
 def test_lmse_local_scale_invariance():
@@ -108,3 +142,25 @@ def test_metric_value_errors():
     bad[0, 0] = np.nan
     with pytest.raises(ValueError, match="non-finite"):
         si_mse(bad, t)
+
+
+def test_non_finite_values_count_only_inside_the_mask():
+    from pbrbench.checks import check_finite
+
+    a = np.ones((4, 5))
+    a[0, 0] = np.nan
+    inside = np.ones((4, 5), bool)
+    outside = inside.copy()
+    outside[0, 0] = False
+    check_finite(a, "est", where=outside)             # the NaN is outside: accepted
+    check_finite(np.arange(6), "levels")              # integers are finite
+    with pytest.raises(ValueError, match="est: 1 non-finite"):
+        check_finite(a, "est", where=inside)
+    with pytest.raises(ValueError, match="est: 1 non-finite"):
+        check_finite(a, "est")
+    t = np.full((30, 30), 0.5)
+    e = t.copy()
+    e[0, 0] = np.inf
+    m = np.ones((30, 30), bool)
+    m[0, 0] = False
+    assert lmse(e, t, mask=m) == 0.0                  # a bad value outside the mask is not read
