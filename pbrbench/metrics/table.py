@@ -13,13 +13,17 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class Metric:
-    """One score name: ``better`` is "lower" or "higher"; ``function`` produces it."""
+    """One score name: ``better`` is "lower" or "higher"; ``function`` produces it; ``lower`` is the
+    smallest value the score can take (every score of the tables is an error, a fraction or a
+    count: 0).  The report does not show a bias-corrected value below it
+    (:data:`pbrbench.report.effects.METRIC_LOWER_BOUND`)."""
 
     name: str
     better: str
     unit: str
     description: str
     function: str = ""
+    lower: float = 0.0
 
     def __post_init__(self):
         if self.better not in ("lower", "higher"):

@@ -15,7 +15,12 @@ and the cost of each effect, with standard errors.
   estimate is never called significant.
 * **Monte Carlo bias.** Every cell also carries the mean of its scores' bias estimates
   (:func:`pbrbench.uncertainty.jackknife`); a cell whose ``|bias|`` exceeds its standard error is
-  *noise-limited* (``noise_limited``) and shows the bias-corrected value ``value - bias`` beside it.
+  *noise-limited* (``noise_limited``) and shows the bias-corrected value ``value - bias`` beside it,
+  unless a score's corrected value would fall below the metric's smallest value
+  (:data:`METRIC_LOWER_BOUND`: a negative RMSE): then the bias is not first order in 1/spp (the
+  delete-one-group replicates all sit far from the full-sample score, as when a calibration
+  settles differently with fewer samples), the correction is withheld (``corrected`` NaN,
+  ``correction_fails``) and the cell says so.
 * **Bimodal replicates.** A cell any of whose scores has bimodal replicates (a discrete choice of
   the pipeline flipped between them: :func:`pbrbench.uncertainty.unstable`) is ``unstable``: its
   ± would average a flip, so it is never called significant.
@@ -53,21 +58,32 @@ def base_scene(scene: str) -> str:
     return scene.split(":", 1)[0]
 
 
+# the smallest value of every metric (pbrbench.metrics: errors, fractions and counts; a metric's
+# ``lower``): a bias-corrected score below it is not a correction (tests/report check the tables)
+METRIC_LOWER_BOUND = 0.0
+
 # a cost smaller than this fraction of the reference value is float32 rounding of one pipeline run
 # twice on identical inputs (a convex scene's global and local images agree to ~1e-7), never an effect
 ROUNDING = 1e-6
 
 
 def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.0, dof: float = 0.0,
-         bias: float = float("nan"), unstable: bool = False) -> dict:
-    """One headline cell: value, standard error, dof, scenes, bias, and the flags the report shows."""
+         bias: float = float("nan"), unstable: bool = False, correctable: bool = True) -> dict:
+    """One headline cell: value, standard error, dof, scenes, bias, and the flags the report shows;
+    ``correctable`` False withholds the bias-corrected value (module docstring)."""
     sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0, dof=dof or None) \
         if effect and not unstable else None
     # a bimodal cell's jackknife bias averages a flip: it is not shown as a correction
     limited = not unstable and finite(bias) and finite(se) and abs(bias) > se and abs(bias) > ROUNDING * abs(value)
     return {"value": value, "se": se, "dof": dof, "n": n, "effect": effect, "significant": sig,
             "insignificant": sig is False, "bias": bias, "noise_limited": bool(limited),
-            "corrected": value - bias if finite(bias) else float("nan"), "unstable": bool(unstable)}
+            "corrected": value - bias if finite(bias) and correctable else float("nan"),
+            "correction_fails": bool(limited and not correctable), "unstable": bool(unstable)}
+
+
+def _correctable(scores: list[dict]) -> bool:
+    """Whether every score's bias-corrected value stays at or above :data:`METRIC_LOWER_BOUND`."""
+    return all(s["value"] - bias_of(s) >= METRIC_LOWER_BOUND for s in scores if finite(bias_of(s)))
 
 
 def summary(scores: list[dict], *, effect: bool = False, reference: float = 0.0) -> dict:
@@ -77,7 +93,7 @@ def summary(scores: list[dict], *, effect: bool = False, reference: float = 0.0)
     biases = [bias_of(s) for s in scores]
     bias = sum(biases) / len(biases) if biases and all(finite(b) for b in biases) else float("nan")
     return cell(m, se, len(scores), effect=effect, reference=reference, dof=dof, bias=bias,
-                unstable=any(s.get("unstable") for s in scores))
+                unstable=any(s.get("unstable") for s in scores), correctable=_correctable(scores))
 
 
 def difference(others: list[dict], bases: list[dict]) -> dict:
@@ -89,7 +105,7 @@ def difference(others: list[dict], bases: list[dict]) -> dict:
     bias = sum(biases) / len(biases) if all(finite(x) for x in biases) else float("nan")
     ref_mean = sum(b["value"] for b in bases) / len(bases)
     return cell(m, se, len(bases), effect=True, reference=ref_mean, dof=dof, bias=bias,
-                unstable=any(s.get("unstable") for s in [*others, *bases]))
+                unstable=any(s.get("unstable") for s in [*others, *bases]), correctable=_correctable([*others, *bases]))
 
 
 def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None,
@@ -238,7 +254,8 @@ def format_cell(c: dict | None, digits: int = 3) -> str:
     v = f"{c['value']:+.{digits}g}" if c["effect"] else f"{c['value']:.{digits}g}"
     v += f" ± {c['se']:.2g}" if finite(c["se"]) else ""
     if c.get("noise_limited"):
-        v += f" (bias {c['bias']:+.2g}: {c['corrected']:.{digits}g} corrected)"
+        v += (f" (bias {c['bias']:+.2g}: not first order, no correction)" if c.get("correction_fails") else
+              f" (bias {c['bias']:+.2g}: {c['corrected']:.{digits}g} corrected)")
     if c.get("unstable"):
         v += " (bimodal replicates)"
     return v

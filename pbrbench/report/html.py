@@ -150,7 +150,9 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                 if c.get("noise_limited"):
                     cls = (cls + " biased").strip()
                     title += (f"; noise-limited: the Monte Carlo bias estimate {c['bias']:+.3g} exceeds the standard "
-                              f"error, bias-corrected value {c['corrected']:.4g}")
+                              + ("error, and the corrected value of a score would fall below the metric's smallest "
+                                 "value: the bias is not first order in 1/spp, no correction is given"
+                                 if c.get("correction_fails") else f"error, bias-corrected value {c['corrected']:.4g}"))
                 if c.get("unstable"):
                     cls = (cls + " unstable").strip()
                 if r["group"] is None:

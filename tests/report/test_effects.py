@@ -126,6 +126,29 @@ def test_noise_limited_and_bimodal_cells_are_marked():
     assert eff["unstable"] and eff["significant"] is None and "bimodal" in format_cell(eff)
 
 
+def test_a_correction_below_the_metrics_smallest_value_is_withheld():
+    # the replicates of a calibration all settle far from its full-sample score (0.0145 against
+    # 0.108-0.163): the jackknife bias (+0.38) would make the RMSE negative -- not a correction
+    from pbrbench.report.effects import METRIC_LOWER_BOUND, format_cell
+
+    scores = [s("ball", "local", 0.0145, unc=0.039, dof=3, bias=0.384), s("ball", "global", 0.5, unc=0.01, bias=0.0)]
+    (t,) = effect_tables(scores, INFO)
+    ref, eff = t["rows"][0]["cells"]
+    assert ref["noise_limited"] and ref["correction_fails"] and math.isnan(ref["corrected"])
+    assert "no correction" in format_cell(ref) and "corrected" not in format_cell(ref)
+    # the difference is built on that score too: its correction is withheld as well
+    assert eff["correction_fails"] and math.isnan(eff["corrected"])
+    # a bias that leaves the corrected value inside the range is shown as before
+    scores[0] = s("ball", "local", 0.5, unc=0.039, dof=3, bias=0.384)
+    (t,) = effect_tables(scores, INFO)
+    ref = t["rows"][0]["cells"][0]
+    assert not ref["correction_fails"] and ref["corrected"] == pytest.approx(0.5 - 0.384)
+    # every metric of the tables has the smallest value the report assumes
+    from pbrbench.metrics import METRICS
+
+    assert {m.lower for m in METRICS.values()} == {METRIC_LOWER_BOUND}
+
+
 def test_paired_jackknife_of_many_groups():
     from pbrbench.uncertainty import paired
 
