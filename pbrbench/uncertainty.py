@@ -124,26 +124,47 @@ def noise_values(rep_noise) -> list[float]:
     return [float(v) for v in r if finite(v)]
 
 
-def noise_part(value: float, rep_noise) -> tuple[float, int] | None:
-    """``(variance, dof)`` of the seed's part of a score's error: the sample variance of ``value``
-    and its other seeds' values (``K`` values, ``K`` degrees of freedom); None without any."""
+def noise_part(value: float, rep_noise, *, mean: bool = False) -> tuple[float, int] | None:
+    """``(variance, dof)`` of the seed's part of a score's error from its other seeds' values
+    ``rep_noise`` (``K`` of them, ``K`` degrees of freedom); None without any.
+
+    ``mean`` False: ``value`` is one draw (the job's own seed), and the part is the sample
+    variance of ``value`` and the ``K`` others.  ``mean`` True: ``value`` is the mean of the
+    ``K + 1`` draws (:func:`mean_over_seeds`); the own seed's draw is ``(K + 1) value - sum``
+    of the others, and the part is their sample variance over ``K + 1``, the variance of the mean."""
     vals = noise_values(rep_noise)
     if not vals or not finite(value):
         return None
-    xs = [float(value), *vals]
+    k = len(vals)
+    own = (k + 1) * float(value) - sum(vals) if mean else float(value)
+    xs = [own, *vals]
     m = sum(xs) / len(xs)
-    return sum((x - m) ** 2 for x in xs) / (len(xs) - 1), len(vals)
+    var = sum((x - m) ** 2 for x in xs) / (len(xs) - 1)
+    return (var / (k + 1) if mean else var), k
 
 
-def estimate(value: float, reps=None, rep_noise=None) -> dict:
+def mean_over_seeds(value: float, reps, rep_noise) -> tuple[float, list[float] | None]:
+    """A seed-dependent score as the mean of its ``K + 1`` draws: ``(mean, replicates)``, the
+    delete-one-group replicates (computed at the job's own seed) moved by the same amount as the
+    value, so that their spread and the jackknife bias are those of the own seed's draw: the
+    render noise is common to every draw (they are scored on the same ground truth)."""
+    vals = noise_values(rep_noise)
+    if not vals or not finite(value):
+        return value, reps
+    m = (float(value) + sum(vals)) / (len(vals) + 1)
+    return m, (None if reps is None else [float(r) + (m - float(value)) for r in reps])
+
+
+def estimate(value: float, reps=None, rep_noise=None, *, mean: bool = False) -> dict:
     """``uncertainty`` (one standard error), ``dof``, ``bias`` and ``unstable`` of a score from its
     replicates and its other seeds' values ``rep_noise`` (module docstring); NaN / 0 / None where
-    they cannot be estimated."""
+    they cannot be estimated.  ``mean``: ``value`` is the mean over the seeds
+    (:func:`mean_over_seeds`, :func:`noise_part`)."""
     se_j, bias, dof_j = jackknife(value, reps)
     parts = []
     if dof_j:
         parts.append((se_j * se_j, dof_j))
-    noise = noise_part(value, rep_noise)
+    noise = noise_part(value, rep_noise, mean=mean)
     if noise is not None:
         parts.append(noise)
     if not parts:
@@ -239,12 +260,14 @@ def paired(x: dict, ref: dict) -> tuple[float, float]:
         se, _, dof = jk
         parts = [(se * se, dof)]
         nx, nr = (noise_values(s.get("rep_noise")) for s in (x, ref))
-        if nx and len(nx) == len(nr):
+        mx, mr = bool(x.get("noise_mean")), bool(ref.get("noise_mean"))
+        if nx and len(nx) == len(nr) and mx == mr:
             # both depend on the seed and were scored with the same other seeds: the seed's part of
             # the difference from the paired differences (their correlation kept)
-            parts.append(noise_part(x["value"] - ref["value"], [a - b for a, b in zip(nx, nr, strict=True)]))
+            parts.append(noise_part(x["value"] - ref["value"], [a - b for a, b in zip(nx, nr, strict=True)], mean=mx))
         else:
-            parts += [p for p in (noise_part(s["value"], s.get("rep_noise")) for s in (x, ref)) if p is not None]
+            parts += [p for p in (noise_part(s["value"], s.get("rep_noise"), mean=bool(s.get("noise_mean")))
+                                  for s in (x, ref)) if p is not None]
         var = sum(v for v, _ in parts)
         return math.sqrt(var), (satterthwaite(parts) if var > 0 else float(dof))
     ux, ur = x.get("uncertainty"), ref.get("uncertainty")

@@ -142,6 +142,9 @@ ALTER TABLE scores ADD COLUMN noise_reps TEXT
     (7, "the scene file's samples per pixel beside the ground truth's (what more samples would change)", """
 ALTER TABLE ground_truths ADD COLUMN spp_file INTEGER
 """),
+    (8, "a seed-dependent score's value is the mean over its seeds (1; NULL: the job's own seed's draw)", """
+ALTER TABLE scores ADD COLUMN noise_mean INTEGER
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -149,7 +152,7 @@ RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
                 "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_noise", "replicates", "dof",
-                "bias", "unstable", "noise_reps")
+                "bias", "unstable", "noise_reps", "noise_mean")
 
 
 def _now() -> str:
@@ -517,7 +520,7 @@ class Store:
                          _num(d.get("uncertainty")), _num(_first(noise_values(d.get("rep_noise")))),
                          _reps(d.get("replicates")), _num(d.get("dof")), _num(d.get("bias")),
                          None if d.get("unstable") is None else int(bool(d["unstable"])),
-                         _reps(noise_values(d.get("rep_noise")) or None)))
+                         _reps(noise_values(d.get("rep_noise")) or None), 1 if d.get("noise_mean") else None))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -553,6 +556,7 @@ class Store:
                 d["bias"] = float("nan")
             if d.get("unstable") is not None:
                 d["unstable"] = bool(d["unstable"])
+            d["noise_mean"] = bool(d.get("noise_mean"))   # older rows: the own seed's draw
             out.append(d)
         return out
 

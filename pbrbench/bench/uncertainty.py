@@ -10,8 +10,12 @@ of freedom and its render-noise bias from the same renders.
 
 Where the job's inputs also depend on the seed (injected camera noise, random pixel sampling:
 :meth:`pbrbench.tasks.base.Task.seed_dependent`), the job is scored :data:`NOISE_SEEDS` more times
-on the full ground truth with other seeds, ``v_{n,k}``, and the sample variance of ``v`` and those
-values (:data:`NOISE_SEEDS` degrees of freedom) is added.
+on the full ground truth with other seeds, ``v_{n,k}``, and the score is the mean of the
+:data:`NOISE_SEEDS` + 1 draws (the expected score under the injected noise, not one draw of it;
+:func:`pbrbench.uncertainty.mean_over_seeds`; ``noise_mean`` True): the replicates move with it,
+and the variance of that mean (the draws' sample variance over their number, :data:`NOISE_SEEDS`
+degrees of freedom) is added.  The status metrics (``failed``, ``converged``) stay the own
+seed's; the job's figures show the own seed's draw.
 
 Noise scales measured over independent render seeds (:data:`SCALES_FILE`, written by
 ``scripts/noise_scales.py``) replace the replicates of the algorithms they cover: where every
@@ -39,7 +43,7 @@ import functools
 import json
 from pathlib import Path
 
-from pbrbench.uncertainty import estimate
+from pbrbench.uncertainty import estimate, finite, mean_over_seeds, noise_values
 
 SCALES_FILE = Path(__file__).with_name("noise_scales.json")
 
@@ -164,7 +168,10 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
 
 def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
     """The score dicts with ``replicates``, ``rep_noise``, ``uncertainty``, ``dof``, ``bias`` and
-    ``unstable`` filled in."""
+    ``unstable`` filled in (and ``noise_mean``: the value is the mean over the seeds)."""
+    # the metrics package imports SciPy's image modules: not at the import of this module
+    from pbrbench.metrics.table import STATUS
+
     for s in scores:
         k = score_key(s)
         scale = reps.get("scales", {}).get(k)
@@ -176,7 +183,10 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
         s["replicates"] = list(r) if r is not None else None
         n = reps.get("rep_noise", {}).get(k)
         s["rep_noise"] = list(n) if n is not None else None
-        s.update(estimate(s["value"], s["replicates"], s["rep_noise"]))
+        s["noise_mean"] = bool(noise_values(s["rep_noise"])) and s["metric"] not in STATUS and finite(s["value"])
+        if s["noise_mean"]:   # a seed-dependent score: the mean over its seeds (module docstring)
+            s["value"], s["replicates"] = mean_over_seeds(s["value"], s["replicates"], s["rep_noise"])
+        s.update(estimate(s["value"], s["replicates"], s["rep_noise"], mean=s["noise_mean"]))
     # a flipped discrete choice is the pipeline's, not one metric's: every metric of that
     # algorithm's output on the job is unstable when one of them is
     flipped = {(s["scene"], s["algorithm"]) for s in scores if s.get("unstable")}

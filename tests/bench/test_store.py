@@ -60,7 +60,9 @@ def test_migration_added_later_is_applied(tmp_path, monkeypatch):
 def test_runs_scores_roundtrip_and_export(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
         rid = s.create_run(quality_name="draft", config={"tasks": ["t"]}, variant="scalar_rgb", env=ENV)
-        s.add_job_result(rid, "t|s|local|", "t", [score(value=0.5), score("nan_metric", float("nan"))], seconds=1.0)
+        s.add_job_result(rid, "t|s|local|", "t", [score(value=0.5), score("nan_metric", float("nan")),
+                                                 dict(score("noisy", 0.7), rep_noise=[0.6, 0.8, 0.7], noise_mean=True)],
+                         seconds=1.0)
         s.add_ground_truth(rid, "s", {"scene_hash": "h", "quality": "draft", "spp": 4, "resolution": [32, 32],
                                       "noise": {"radiance_rel_sd_rms": 0.01}, "wall_s": 0.2}, from_cache=False,
                            spp_file=48)
@@ -71,12 +73,15 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
         sc = {x["metric"]: x for x in s.scores(rid)}
         assert sc["rmse"]["value"] == 0.5 and sc["rmse"]["job"] == "t|s|local|"
         assert math.isnan(sc["nan_metric"]["value"])
+        # a seed-dependent score's value is the mean over its seeds; the flag comes back (NULL: False)
+        assert sc["noisy"]["noise_mean"] is True and sc["noisy"]["rep_noise"] == [0.6, 0.8, 0.7]
+        assert sc["rmse"]["noise_mean"] is False
         assert s.ground_truths(rid)[0]["noise"]["radiance_rel_sd_rms"] == 0.01
         assert (s.ground_truths(rid)[0]["spp"], s.ground_truths(rid)[0]["spp_file"]) == (4, 48)
         out = s.export_json(rid, tmp_path / "run" / "scores.json")
         data = json.loads(out.read_text())  # strict JSON: NaN written as null
-        assert data["run"]["id"] == rid and len(data["scores"]) == 2
-        assert {x["value"] for x in data["scores"]} == {0.5, None}
+        assert data["run"]["id"] == rid and len(data["scores"]) == 3
+        assert {x["value"] for x in data["scores"]} == {0.5, 0.7, None}
 
 
 def test_job_result_replaces_and_resume_bookkeeping(tmp_path):

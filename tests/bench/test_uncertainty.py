@@ -163,10 +163,39 @@ def test_seed_dependent_jobs_add_the_noise_seed_part():
     reps = replicate_scores(TASK, job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
     assert set(reps) == {"rep_noise"}  # a synthetic ground truth has no sample groups; the noise seed part is there
     res = TASK.run_job(job, {"s": gt}, seed=0, algorithms=algs, quality=get_quality("draft"))
+    own = {(s.algorithm, s.metric): s.value for s in res.scores}
     sc = {(s["algorithm"], s["metric"]): s for s in attach([s.as_dict() for s in res.scores], reps)}
     w = sc[("woodham1980", "normal_mean_deg")]
-    assert len(w["rep_noise"]) == NOISE_SEEDS and len(set(w["rep_noise"] + [w["value"]])) == NOISE_SEEDS + 1
+    draws = [own[("woodham1980", "normal_mean_deg")], *w["rep_noise"]]
+    assert len(w["rep_noise"]) == NOISE_SEEDS and len(set(draws)) == NOISE_SEEDS + 1
+    # the score is the mean over the seeds, its seed part the standard error of that mean
+    assert w["noise_mean"] and w["value"] == pytest.approx(np.mean(draws))
+    assert w["uncertainty"] == pytest.approx(np.std(draws, ddof=1) / math.sqrt(NOISE_SEEDS + 1))
     assert 0 < w["uncertainty"] < 0.2 * w["value"] and w["dof"] == NOISE_SEEDS
+
+
+def test_a_seed_dependent_score_is_the_mean_over_its_seeds():
+    from pbrbench.uncertainty import mean_over_seeds, noise_part
+
+    draws = [1.0, 1.2, 0.8, 1.4]                     # the own seed's draw first
+    m, reps = mean_over_seeds(draws[0], [0.9, 1.1, 1.05, 0.95], draws[1:])
+    assert m == pytest.approx(1.1) and reps == pytest.approx([1.0, 1.2, 1.15, 1.05])
+    var, dof = noise_part(m, draws[1:], mean=True)   # the own draw is recovered from the mean
+    assert var == pytest.approx(np.var(draws, ddof=1) / 4) and dof == 3
+    e1 = estimate(draws[0], [0.9, 1.1, 1.05, 0.95], draws[1:])
+    e2 = estimate(m, reps, draws[1:], mean=True)
+    assert e2["bias"] == pytest.approx(e1["bias"])   # the replicates moved with the value: the same bias
+    assert e2["uncertainty"] < e1["uncertainty"]
+    # the seed's part of a difference of two means, paired: a common shift of the draws cancels
+    x = {"value": 2.05, "replicates": [1.0] * 4, "rep_noise": [2.5, 1.5, 2.2], "scene_hash": "h", "noise_mean": True}
+    ref = {"value": 1.05, "replicates": [1.0] * 4, "rep_noise": [1.5, 0.5, 1.2], "scene_hash": "h", "noise_mean": True}
+    assert paired(x, ref)[0] == pytest.approx(0.0, abs=1e-12)
+    # without other seeds nothing changes
+    assert mean_over_seeds(1.0, [1.0, 1.1], None) == (1.0, [1.0, 1.1])
+    # the status metrics stay the own seed's draw
+    key = ("s", "a", "failed")
+    (f,) = attach([{"scene": "s", "algorithm": "a", "metric": "failed", "value": 1.0}], {"rep_noise": {key: [0.0, 0.0, 0.0]}})
+    assert f["value"] == 1.0 and not f["noise_mean"]
 
 
 def test_the_noise_seed_part_of_a_difference_is_paired():
