@@ -139,8 +139,11 @@ for d, inputs in todo:
 '''
 
 
-def _in_process(tmp_path, task, seed):
-    return run_benchmark(RunConfig(quality="draft", seed=seed, entry_points=False), settings=settings_for(tmp_path),
+def _in_process(tmp_path, task, seed, uncertainty=False):
+    # without the replicates a seed-dependent score is the own seed's draw, as a program that ran
+    # on the jobs only is scored (with them, the mean over the seeds: docs/science.md §8)
+    return run_benchmark(RunConfig(quality="draft", seed=seed, entry_points=False, uncertainty=uncertainty),
+                         settings=settings_for(tmp_path),
                          tasks={task.name: task}, source=Synthetic(tmp_path / "cache"),
                          registry=Registry([builtin_registry({task.name: task}).get(task.name, BUILTIN[task.name])]),
                          log=lambda m: None)
@@ -207,14 +210,22 @@ def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicat
     assert [r["folder"].split("/", 2)[-1] for r in job["replicates"]] == [
         "replicates/0", "replicates/1", "replicates/2", "replicates/3",
         "replicates/noise", "replicates/noise2", "replicates/noise3"]   # local+noise0.01: three other seeds
-    # the program ran on the jobs only: scores, no standard errors, and the reader says why
+    # the program ran on the jobs only: scores, no standard errors, and the reader says why; a
+    # seed-dependent score is then the own seed's draw (the in-process run without replicates)
     _external(tmp_path / "export")
     out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "a"),
                                   source=Grouped(tmp_path / "cache"), log=lambda m: None)
     assert not reader.errors and len(reader.missing_replicates) == 3
     got = {(s["scene"], s["condition"], s["metric"]): s for s in out.scores if s["algorithm"] == "mine"}
-    assert {k: v["value"] for k, v in got.items()} == {k: v[0] for k, v in want.items()}
+    plain = run_benchmark(RunConfig(quality="draft", seed=seed, entry_points=False, uncertainty=False),
+                          settings=settings_for(tmp_path / "plain"), tasks={task.name: task}, source=Grouped(tmp_path / "cache"),
+                          registry=Registry([builtin_registry({task.name: task}).get(task.name, "woodham1980")]),
+                          log=lambda m: None)
+    plain = _by_key(plain.scores, "woodham1980")
+    assert {k: v["value"] for k, v in got.items()} == plain
     assert all(math.isnan(v["uncertainty"]) for v in got.values())
+    k = ("ps_a", "local+noise0.01", "normal_mean_deg")
+    assert want[k][0] != plain[k]              # the mean over the seeds, not the own seed's draw
     # ... and on every replicate folder too: the in-process standard errors, bit for bit
     _external(tmp_path / "export", "npy", "replicates")
     out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "b"),
