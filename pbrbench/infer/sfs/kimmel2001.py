@@ -313,7 +313,18 @@ def shape_from_shading_kimmel2001(image, light, *, albedo=None, mask=None, pixel
         raise ValueError(f"seeds='singular': no pixel has E >= 1 - singular_delta "
                          f"({1 - singular_delta:g}); pass the albedo, raise singular_delta or "
                          "use seeds='boundary'")
-    if frontal:
+    if frontal and mode == "singular" and sing[m].all():
+        # every pixel faces the light: no front to march (and no zero level set for the eikonal
+        # solver); the image fixes no slope, the answer is flat, and it is reported as a failure
+        msg = (f"kimmel2001: every mask pixel reads E >= 1 - singular_delta ({1 - singular_delta:g}), "
+               "a singular point, so the image fixes no slope and the result is flat; the albedo "
+               "passed is probably below the true one (E = image / albedo)")
+        warnings.warn(msg, RuntimeWarning, stacklevel=2)
+        info["failure"] = msg
+        converged = False
+        zp, gmag, n_iter = np.where(m, 0.0, np.nan), np.zeros(E.shape), 0
+        p, q = np.zeros(E.shape), np.zeros(E.shape)
+    elif frontal:
         zp, gmag = _fmm_eikonal(E, m, seeds=mode, delta=singular_delta, e_min=e_min, order=2)
         n_iter = int(np.isfinite(zp).sum())
         # the eikonal fixes |grad z| = g exactly; keep the marched tilt, take the slant from g

@@ -81,3 +81,24 @@ def test_boundary_seeds_need_a_frontal_light():
 def test_option_errors(kwargs, match):
     with pytest.raises(ValueError, match=match):
         shape_from_shading_kimmel2001(np.full((16, 16), 0.5), FRONTAL, **kwargs)
+
+
+def test_every_pixel_singular_is_a_reported_flat_failure():
+    # a shallow bump under the view light with the albedo given far too small: every pixel reads
+    # E >= 1 (a singular point).  The eikonal solver has no front (it raised "the array phi
+    # contains no zero contour" from scikit-fmm); the image fixes no slope, so the answer is flat,
+    # reported as a failure with the reason
+    n = 48
+    y, x = np.mgrid[-1:1:n * 1j, -1:1:n * 1j]
+    z = 0.5 * np.exp(-4 * (x * x + y * y))       # slopes to 41 deg: N_z >= 0.76
+    zy, zx = np.gradient(z, 2 / (n - 1))
+    nz = 1 / np.sqrt(1 + zx * zx + zy * zy)
+    img = 0.8 * nz
+    mask = x * x + y * y < 0.49                   # the edge still slopes (N_z 0.93): one summit
+    with pytest.warns(RuntimeWarning, match="every mask pixel reads E >= 1"):
+        r = shape_from_shading_kimmel2001(img, FRONTAL, albedo=0.5, mask=mask)
+    assert not r.converged and "albedo passed is probably below" in r.info["failure"]
+    assert np.ptp(r.height[mask]) == 0.0 and np.all(r.normals[mask][:, 2] == 1.0)
+    # with the true albedo the same image is a bump again
+    r = shape_from_shading_kimmel2001(img, FRONTAL, albedo=0.8, mask=mask)
+    assert r.converged and r.height[n // 2, n // 2] > r.height[2, 2]
