@@ -51,3 +51,30 @@ def test_option_value_errors():
         calibrate_debevec1997(Z, t, bit_depth=4)
     with pytest.raises(ValueError, match="bit_depth"):
         calibrate_debevec1997(Z, t, bit_depth=17)
+    with pytest.raises(ValueError, match="curvature"):
+        calibrate_debevec1997(Z, t, curvature="cubic")
+
+
+def test_widely_spaced_exposures_take_the_level_curvature():
+    """Three exposures 3 stops apart of a film-like camera (toe and shoulder, read and shot noise):
+    the log curvature prefers a ripple of period ln r to the film's shoulder; the level curvature
+    (the paper's g''(z)) does not.  ``"auto"`` takes it for 2.5 stops or more, and keeps the log
+    curvature for a 1-stop bracket."""
+    from pbrbench.camera import bracket_exposure_times
+    from pbrbench.metrics.hdr import hdr_scores
+    from pbrbench.perf.hdr import synthetic_radiance
+
+    L = synthetic_radiance(96)
+    t = bracket_exposure_times(L, stops=3.0, count=3, headroom=0.9)
+    br = Camera("film", bit_depth=8, read_noise=0.002, full_well=1e4).capture(L, t, seed=11)
+
+    def err(**kw):
+        r = calibrate_debevec1997(br.images, br.exposure_times, **kw)
+        return hdr_scores(merge_hdr(br.images, br.exposure_times, r), L, mask=~br.saturated)["log2_rmse"]
+
+    auto, log, level = err(), err(curvature="log"), err(curvature="level")
+    assert auto == level and level < log / 3          # 0.062 against 0.286 stops
+    t7 = bracket_exposure_times(L, stops=1.0, count=7, headroom=0.9)
+    br7 = Camera("film", bit_depth=8).capture(L, t7, seed=11)
+    a = calibrate_debevec1997(br7.images, br7.exposure_times).inverse
+    assert np.array_equal(a, calibrate_debevec1997(br7.images, br7.exposure_times, curvature="log").inverse)
