@@ -31,7 +31,10 @@ def _num(x) -> float:
 
 
 def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0) -> list[dict]:
-    """Rows {key fields, a, b, delta, se, limit, direction, scene_changed} with direction better /
+    """Rows {key fields, a, b, delta, se, limit, direction, scene_changed, estimator_changed} with
+    ``estimator_changed`` True where a seed-dependent score is one seed's draw in one run and the
+    mean over its seeds in the other (``noise_mean``: runs stored before and after that change),
+    and direction better /
     worse / same / only-a / only-b / unstable.  The rule is the regression check's
     (:func:`pbrbench.uncertainty.change` with one measurement on each side): a change is better or
     worse only beyond ``t_{1 - alpha/2}(dof) * sd * sqrt(2)``, ``sd`` pooled from the two scores'
@@ -61,8 +64,10 @@ def differences(a_scores: list[dict], b_scores: list[dict], *, rel: float = 0.0)
                               unstable=bool(unstable_of(sa) or unstable_of(sb)), rel=rel)
         changed = bool(sa and sb and sa.get("scene_hash") and sb.get("scene_hash")
                        and sa["scene_hash"] != sb["scene_hash"])
+        estimator = bool(sa and sb and sa.get("rep_noise") and sb.get("rep_noise")
+                         and bool(sa.get("noise_mean")) != bool(sb.get("noise_mean")))
         rows.append(dict(zip(KEY, key, strict=True), a=va, b=vb, delta=vb - va, se=se, limit=lim, better=better,
-                         direction=d, scene_changed=changed))
+                         direction=d, scene_changed=changed, estimator_changed=estimator))
     return rows
 
 
@@ -128,13 +133,19 @@ def run(args) -> int:
     if n_hash:
         print(f"note: {n_hash} scene(s) have different content hashes in the two runs (scene file, data or render "
               "seed changed): their differences include that change")
+    n_est = sum(1 for r in rows if r["estimator_changed"])
+    if n_est:
+        print(f"note: {n_est} score(s) of seed-dependent jobs are one seed's draw in one run and the mean over "
+              "the seeds in the other (runs stored before and after 2026-12-04): their differences include "
+              "that change of estimator")
     if shown:
         from pbrbench.text import text_table
 
         cols = ("task", "scene", "condition", "algorithm", "metric")
         table = [[str(r[c]) for c in cols] + [fmt(r["a"]), fmt(r["b"]), fmt(r["delta"]), fmt(r["limit"]),
                                               f"{r['direction']} ({r['better']} is better)"
-                                              + (" [scene changed]" if r["scene_changed"] else "")] for r in shown]
+                                              + (" [scene changed]" if r["scene_changed"] else "")
+                                              + (" [estimator changed]" if r["estimator_changed"] else "")] for r in shown]
         for line in text_table(table, header=(*cols, "a", "b", "delta", "limit", "direction"), align="lllllrrrrl"):
             print(line)
     if args.html is not None:

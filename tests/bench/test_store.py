@@ -209,3 +209,26 @@ def test_compare_uses_the_noise_rule_reads_two_stores_and_names_changed_scenes(t
     assert main(["compare", ra, rb, "--store", str(pa), "--store-b", str(pb)]) == 0
     out = capsys.readouterr().out
     assert "1 worse" in out and "1 unstable" in out and "different content hashes" in out and "[scene changed]" in out
+
+
+def test_compare_says_when_one_run_holds_draws_and_the_other_means(tmp_path, capsys):
+    # a seed-dependent score stored before the mean over the seeds (the own seed's draw) against
+    # one stored after it: the difference includes the change of estimator, and compare says so
+    from pbrbench.cli.compare import differences
+    from pbrbench.cli.main import main
+
+    draw = dict(score("noisy", 0.70), uncertainty=0.1, dof=3, rep_noise=[0.6, 0.8, 0.75])
+    mean = dict(score("noisy", 0.7125), uncertainty=0.05, dof=3, rep_noise=[0.6, 0.8, 0.75], noise_mean=True)
+    plain = score("plain", 1.0)
+    (dn, dp) = sorted(differences([draw, plain], [mean, plain]), key=lambda r: r["metric"])
+    assert dn["estimator_changed"] and not dp["estimator_changed"]
+    assert not differences([mean], [mean])[0]["estimator_changed"]
+    p = tmp_path / "h.sqlite"
+    with Store(p) as s:
+        ra = s.create_run(quality_name="draft", env=ENV)
+        s.add_job_result(ra, "k", "t", [draw])
+        rb = s.create_run(quality_name="draft", env=ENV)
+        s.add_job_result(rb, "k", "t", [mean])
+    assert main(["compare", ra, rb, "--store", str(p), "--all"]) == 0
+    out = capsys.readouterr().out
+    assert "one seed's draw in one run and the mean over the seeds in the other" in out and "[estimator changed]" in out
