@@ -181,7 +181,10 @@ def albedo_abs_error(est, true, *, mask=None) -> float:
     Scores the constant of integration: with the anchor rules of retinex, a perfect
     decomposition with the wrong constant has a large error here and none in :func:`lmse`.
     """
-    e, t, m = _pair(est, true, mask)
+    return _abs_error_checked(*_pair(est, true, mask))
+
+
+def _abs_error_checked(e, t, m) -> float:
     return float(np.mean(np.abs(e - t)[m]))
 
 
@@ -249,7 +252,7 @@ def lightness_scores(refl, shad, refl_true, shad_true, *, mask, labels=None, win
     out = {"lmse": lmse_r,
            "intrinsic_lmse": 0.5 * (lmse_s + lmse_r),
            "si_mse": _si_mse_checked(er, tr, m),
-           "albedo_abs_err": float(np.mean(np.abs(er - tr)[m]))}
+           "albedo_abs_err": _abs_error_checked(er, tr, m)}
     if labels is not None:
         try:
             r = np.abs(ratio_errors(refl, refl_true, labels, mask=mask, erode=1))

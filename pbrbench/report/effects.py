@@ -83,7 +83,8 @@ def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.
 
 def _correctable(scores: list[dict]) -> bool:
     """Whether every score's bias-corrected value stays at or above :data:`METRIC_LOWER_BOUND`."""
-    return all(s["value"] - bias_of(s) >= METRIC_LOWER_BOUND for s in scores if finite(bias_of(s)))
+    biases = ((s["value"], bias_of(s)) for s in scores)
+    return all(v - b >= METRIC_LOWER_BOUND for v, b in biases if finite(b))
 
 
 def summary(scores: list[dict], *, effect: bool = False, reference: float = 0.0) -> dict:

@@ -134,9 +134,11 @@ def calibrate_debevec1997(images, exposure_times, *, smoothness: float | None = 
     DtWD = _smoothness_operator(knot_pos, np.interp(knot_pos, np.arange(levels), wl), curvature)
     # Equal exposure ratios r leave g undetermined up to a ripple periodic in ln E with period
     # ln r (Grossberg & Nayar 2003); only the smoothness term fixes it, and the wider the
-    # spacing the more of g it must decide.  The penalty is scaled by (log2 r)^2 (empirical: on
-    # the benchmark bracket, 3 exposures 3 stops apart, ^4 over-smooths the true curvature and
-    # ^0 leaves the ripple; see pbrbench/perf/hdr.py).
+    # spacing the more of g it must decide.  The penalty is scaled by (log2 r)^2 (empirical, with
+    # the log curvature: on the benchmark bracket, 3 exposures 3 stops apart, ^4 over-smooths the
+    # true curvature and ^0 leaves the ripple; see pbrbench/perf/hdr.py.  With the level
+    # curvature, ^2 with smoothness 3e-8 and ^4 with 3e-9 (equal at 3 stops) gave errors within
+    # about 10 % of each other on most wide brackets of docs/peers.md, neither lower throughout).
     stretch = max(1.0, widest) ** 2
     logx = np.empty((levels, C))
     counts = np.zeros((levels, C))
