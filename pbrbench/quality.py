@@ -47,11 +47,14 @@ class Quality:
     max_spp_factor: float = 1.0                         # at most this many times the scene's spp
     groups: int = 4                                     # independent sample groups per pass (jackknife)
 
-    def resolution(self, res: tuple[int, int]) -> tuple[int, int]:
+    def resolution(self, res: tuple[int, int], floor: int | None = None) -> tuple[int, int]:
+        """The rendered ``(width, height)`` of a scene whose file asks for ``res``: scaled by
+        ``res_scale``, the smaller side at least ``min_res`` and at least ``floor`` (the scene's
+        ``render.min_resolution``, when it sets one)."""
         w, h = res
         if self.res_scale == 1:
             return w, h
-        s = max(self.res_scale, self.min_res / min(w, h))
+        s = max(self.res_scale, max(self.min_res, floor or 0) / min(w, h))
         return max(4, round(w * s)), max(4, round(h * s))
 
     def spp(self, spp: int) -> int:

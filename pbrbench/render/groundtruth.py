@@ -236,7 +236,7 @@ class _Renderer:
         self.spec = spec
         q = require(quality)
         self.quality = q.name
-        self.res = q.resolution(spec.render.resolution)
+        self.res = q.resolution(spec.render.resolution, spec.render.min_resolution)
         self.spp = q.spp(spec.render.spp)
         self.seed = spec.render.seed
         self.target = q.noise_target          # (median, rms) relative sd of the passes, or None

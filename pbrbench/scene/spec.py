@@ -524,6 +524,9 @@ class Render(Model):
     rr_depth: Annotated[int, _integer(1, MAX_DEPTH)] = 5
     seed: Annotated[int, _integer(0, MAX_SEED, " (the renderer derives 32-bit seeds from it)")] = 0
     sampler: Literal["multijitter", "independent", "stratified", "orthogonal", "ldsampler"] = "multijitter"
+    min_resolution: Annotated[int, _integer(4, 8192)] | None = Field(
+        None, description="the fewest pixels a side a reduced profile (draft) may render: for scenes whose task needs "
+                          "enough pixels in every part of the image (an HDR bracket's calibration)")
 
     @field_validator("resolution", mode="before")
     @classmethod
@@ -541,6 +544,9 @@ class Render(Model):
     def _depth(self):
         if self.max_depth in (0, 1):
             raise ValueError("max_depth 0/1 renders no reflected light; use 2 (direct) or -1 (global)")
+        if self.min_resolution is not None and self.min_resolution > min(self.resolution):
+            raise ValueError(f"min_resolution ({self.min_resolution}) must not exceed the smaller side of resolution "
+                             f"{list(self.resolution)}; lower it or raise resolution")
         return self
 
 
@@ -675,6 +681,8 @@ class SceneSpec(Model):
     def canonical(self) -> dict:
         """JSON-ready dict of everything that affects the render (no paths, no sweep)."""
         d = self.model_dump(mode="json", exclude={"base_dir", "source", "data_dirs", "sweep", "description", "reference", "tags"})
+        if d["render"].get("min_resolution") is None:   # unset: the hash of a file that does not use it is unchanged
+            d["render"].pop("min_resolution", None)
         return d
 
     def content_hash(self) -> str:

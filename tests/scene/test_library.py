@@ -56,6 +56,8 @@ BAD = [
     ("negative irradiance", GOOD.replace("direction = [0.0, 0.0, 1.0]", "direction = [0.0, 0.0, 1.0]\nirradiance = -1.0"),
      ["lights[0].irradiance", ">= 0"]),
     ("unknown top-level key", "descripton = 'x'\n" + GOOD, ["descripton: unknown key (did you mean 'description'?)"]),
+    ("min_resolution above resolution", GOOD.replace("spp = 4", "spp = 4\nmin_resolution = 32"),
+     ["render", "min_resolution (32) must not exceed", "[16, 16]"]),
 ]
 
 
@@ -79,6 +81,24 @@ def test_good_file_loads(tmp_path):
     path.write_text(GOOD)
     (spec,) = load_scene_file(path)
     assert spec.name == "t" and len(spec.lights) == 2
+
+
+def test_min_resolution_floors_the_draft_resolution_and_an_unset_one_leaves_the_hash(tmp_path):
+    from pbrbench.quality import get_quality
+
+    big = GOOD.replace("resolution = 16", "resolution = [256, 128]")
+    plain = tmp_path / "plain.toml"
+    plain.write_text(big)
+    floored = tmp_path / "floored.toml"
+    floored.write_text(big.replace("spp = 4", "spp = 4\nmin_resolution = 64"))
+    (a,), (b,) = load_scene_file(plain), load_scene_file(floored)
+    draft, standard = get_quality("draft"), get_quality("standard")
+    assert draft.resolution(a.render.resolution, a.render.min_resolution) == (64, 32)     # / 4, at least 32 px
+    assert draft.resolution(b.render.resolution, b.render.min_resolution) == (128, 64)    # the smaller side >= 64
+    assert standard.resolution(b.render.resolution, b.render.min_resolution) == (256, 128)
+    # a file without the key hashes as before the key existed (caches and baselines stay valid)
+    assert "min_resolution" not in a.canonical()["render"]
+    assert a.content_hash() != b.content_hash()
 
 
 def test_a_scene_without_a_seed_gets_its_own_and_a_given_seed_is_kept(tmp_path):

@@ -99,7 +99,7 @@ def gi_spec(*, seed: int = 0, resolution: int = 64, spp: int = 1024) -> SceneSpe
 
 # --------------------------------------------------------------------------- helpers
 def _pixel_size(spec: SceneSpec, quality: Quality) -> tuple[int, int, float]:
-    w, h = require(quality).resolution(spec.render.resolution)
+    w, h = require(quality).resolution(spec.render.resolution, spec.render.min_resolution)
     return w, h, 2.0 * spec.camera.half_width / w
 
 
