@@ -187,3 +187,27 @@ def test_ratio_option_errors(kwargs, match):
     br = Camera("gamma").capture(scene(8), [0.25, 0.5, 1.0])
     with pytest.raises(ValueError, match=match):
         calibrate_mitsunaga1999(br.images, br.exposure_times, degree=2, **kwargs)
+
+
+def test_a_pair_with_too_few_rows_keeps_its_stated_ratio():
+    # 3 exposures 3 stops apart, stated times 10 % off; most of the scene is black in the first
+    # exposure, so the first pair has only the n bright pixels.  A degree-5 polynomial fits 12
+    # rows at any ratio: below 4 (N + 1) = 24 rows the pair does not determine its ratio, and
+    # with the stated span fixed neither ratio is re-estimated, even when asked to; with 200 rows
+    # the re-estimated first ratio moves toward the true one
+    def bracket(n_bright):
+        rng = np.random.default_rng(0)
+        L = np.exp(rng.uniform(np.log(3e-4), np.log(1.9e-3), (32, 32)))
+        L.ravel()[:n_bright] = np.exp(rng.uniform(np.log(0.01), np.log(0.1), n_bright))
+        return Camera("film", bit_depth=8, exposure_error=0.1).capture(np.repeat(L[..., None], 3, axis=-1),
+                                                                        [1.0, 8.0, 64.0], seed=3)
+
+    few = bracket(12)
+    z = few.images
+    assert (((z[0] > 0) & (z[0] < 255) & (z[1] > 0) & (z[1] < 255))[..., 0]).sum() == 12
+    kept = calibrate_mitsunaga1999(few.images, few.exposure_times, degree=5, estimate_ratios=True)
+    np.testing.assert_allclose(kept.exposure_times, few.exposure_times, rtol=1e-12)
+    many = bracket(200)
+    est = calibrate_mitsunaga1999(many.images, many.exposure_times, degree=5, estimate_ratios=True)
+    first = [np.log(t[0] / t[1]) for t in (est.exposure_times, many.exposure_times, many.true_exposure_times)]
+    assert abs(first[0] - first[2]) < 0.5 * abs(first[1] - first[2])
