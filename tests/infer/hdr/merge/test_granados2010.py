@@ -192,3 +192,19 @@ def test_group_order_statistics_and_bins():
         v = np.concatenate([rng.random(20000), edges, np.nextafter(edges, 2)[:-1], np.nextafter(edges, -1)[1:]])
         np.testing.assert_array_equal(_bin_index(v, _bin_table(n_bins)),
                                       np.clip(np.searchsorted(edges, v, side="right") - 1, 0, n_bins - 1))
+
+
+def test_a_first_noise_fit_of_zero_is_reweighted_like_any_other():
+    # group statistics where the low-spread groups (quantisation above their spread) dominate the
+    # first fit's weights n / s_g^2 and pull it to a = b = 0; reweighted from the model, the
+    # groups of real shot noise (variance 0.01 + 0.02 x above the quantisation's 0.01) give b > 0.
+    # Stopping at the first zero made the estimate jump between 0 and the reweighted b
+    from pbrbench.infer.hdr.merge._granados_noise import _fit_noise_model, _weighted_fit
+
+    x = np.linspace(0.05, 0.8, 20)
+    u0, q, n = np.full(20, 5.0), np.full(20, 0.01), np.full(20, 50.0)
+    var = np.where(x < 0.3, 0.005, 0.01 + 0.02 * x)
+    y = var - q
+    assert _weighted_fit(n / var ** 2, u0, x, y) == (0.0, 0.0)      # the first pass alone
+    a, b = _fit_noise_model(n, var, q, u0, x, 8, 2)
+    assert a == 0.0 and 0.01 < b < 0.02
