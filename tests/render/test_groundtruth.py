@@ -171,3 +171,27 @@ def test_the_geometry_does_not_move_with_the_render_seed():
     i = moved[0]
     assert not np.array_equal(a.replicate(i, geometry=True)["normals"], a["normals"])
     assert a.varies(i, ["normals"], geometry=True)
+
+
+def test_shape_ids_are_read_to_float32_rounding():
+    # the film holds a pixel's weighted mean of its samples' shape indices in float32: 2.9999998
+    # for a pixel that sees only shape 3.  Compared exactly, such shapes fell out of object_id and
+    # of the pure mask (odd indices above 1, in some runs and not others); a mixture of two shapes
+    # stays unmapped (-1)
+    from types import SimpleNamespace
+
+    from pbrbench.render.groundtruth import _Renderer
+    from pbrbench.scene.mitsuba_dict import shape_key
+
+    spec = SceneSpec.model_validate({**SCENE, "shapes": SCENE["shapes"] + [
+        {"type": "sphere", "name": f"extra{k}", "radius": 0.1, "center": [k, 2, 0], "material": "paint"}
+        for k in range(4)]})
+    keys = [shape_key(spec, i) for i in range(len(spec.shapes))]
+    scene = SimpleNamespace(shapes=lambda: [SimpleNamespace(id=lambda k=k: k) for k in keys])
+    fake = SimpleNamespace(mi=SimpleNamespace(variant=lambda: "scalar_rgb"), spec=spec)
+    w = np.float32(0.9)
+    rounded = [np.float32(np.float32(w * np.float32(r)) / w) for r in (3, 6)]
+    assert all(v != r for v, r in zip(rounded, (3, 6), strict=True))    # the rounding the film gives
+    si = np.array([0.0, 1.0, 2.0, rounded[0], 4.0, 5.0, rounded[1], 2.5], np.float32)
+    ids = _Renderer._object_ids(fake, scene, si)
+    np.testing.assert_array_equal(ids, [0, 1, 2, 3, 4, 5, 6, -1])
