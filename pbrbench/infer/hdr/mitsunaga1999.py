@@ -18,8 +18,8 @@ from pbrbench.infer.hdr.response import CameraResponse
 
 __all__ = ["calibrate_mitsunaga1999"]
 
-VERSION = "6"  # a ratio is re-estimated only from a pair with more than 4 (N + 1) rows per channel (the polynomial fits fewer at any ratio)
-RATIO_ROWS_PER_COEFFICIENT = 4   # a pair's ratio is re-estimated only with at least this many rows per channel per coefficient
+VERSION = "6"  # a ratio is re-estimated only from a pair of >= RATIO_ROWS_PER_COEFFICIENT (N + 1) rows per channel
+RATIO_ROWS_PER_COEFFICIENT = 4   # fewer: on hdr_scene's 64 x 64 3-exposure bracket (4-5 rows) ln R moved 0.4, 0.14 -> 0.24 stops
 
 
 _GRID = 65  # points on which the monotonicity of the fitted polynomial is enforced
@@ -174,13 +174,8 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     ``\varepsilon`` (``ratio_gain = 0.5``) without raising the relative pair error below (a
     timing error shows in bright and dark pairs alike; on a 3-exposure bracket 3 stops apart a
     re-estimated ratio 7x off fitted the few overlapping rows 6x better in ``\varepsilon`` and
-    17x worse in relative terms).  Only a pair with at least ``4 (N + 1)`` rows (pixels
-    unclipped in both its exposures) in every channel has its ratio re-estimated; the others keep
-    theirs, and with fewer than two such pairs (the stated span fixes a single free ratio) none
-    is.  A polynomial of ``N + 1`` coefficients fits a handful of rows at any ratio: on the HDR
-    task's 3-exposure bracket 3 stops apart, rendered at 64 x 64, the first pair has 4-5 rows and
-    re-estimating its ratio moved it by 0.4 in ``ln R`` and the log2 RMSE from 0.14 to 0.21-0.24
-    stops on two of six renders, the other renders and every replicate keeping the stated ratios.
+    17x worse in relative terms).  Only pairs of ``4 (N + 1)`` rows per channel or more re-estimate
+    theirs (a polynomial fits fewer at any ratio; with the span fixed, one such pair alone none).
 
     Order: the paper's rule, the order ``N`` in ``1 .. max_degree`` with the smallest
     ``\varepsilon`` among the monotonic solutions.  Here every fit is constrained to be
@@ -230,8 +225,7 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     25(11), 2003 (the exponential ambiguity).
     """
     Z, levels, t = prepare_bracket(images, exposure_times, bit_depth)
-    if degree is not None:
-        degree = check_int(degree, "degree", 1, 20)
+    degree = None if degree is None else check_int(degree, "degree", 1, 20)
     max_degree = check_int(max_degree, "max_degree", 1, 20)
     max_iter = check_int(max_iter, "max_iter", 1)
     tol = check_tolerance(tol)
@@ -239,8 +233,7 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     if not (estimate_ratios is True or estimate_ratios is False or estimate_ratios == "auto"):
         raise ValueError(f"estimate_ratios: expected True, False or 'auto', got {estimate_ratios!r}")
     ratio_gain = check_number(ratio_gain, "ratio_gain", lo=0.0, hi=1.0, lo_open=True)
-    K, H, W, C = Z.shape
-    top = levels - 1
+    (K, H, W, C), top = Z.shape, levels - 1
     m_first = 1.0 / top
     idx_c = sample_pixels(Z, levels, n_samp, seed)
     flat = Z.reshape(K, H * W, C)
@@ -249,7 +242,6 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     # per channel: stacked pair rows (Ma, Mb, pair index k), rows of pair k contiguous; a row's
     # levels as indices into the channel's distinct levels, so that a polynomial is evaluated
     # once per level (not per row) and looked up
-    support = np.full(K - 1, np.iinfo(np.int64).max)  # rows of each pair, the fewest over the channels
     rows = []  # per channel (distinct levels / top, ia, ib, kk): the row order of the sums
     sums = []  # per channel (distinct levels / top, [ia | ib], [kk | kk + K - 1]), interleaved
     distinct = []  # per channel (distinct levels / top, ia, ib, kk, multiplicity), distinct rows
@@ -263,7 +255,6 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
             ib.append(zb[ok])
             kk.append(np.full(int(ok.sum()), k))
         ia, ib, kk = np.concatenate(ia), np.concatenate(ib), np.concatenate(kk)
-        support = np.minimum(support, np.bincount(kk, minlength=K - 1))
         if ia.size < 4:
             raise ValueError(f"images: channel {c} has too few pixels unclipped in two adjacent exposures; "
                              "use exposures closer together or that cover the scene")
@@ -292,6 +283,8 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
         else:
             code, mult = np.unique(code, return_counts=True)
         distinct.append((ml, code // nl % nl, code % nl, code // (nl * nl), mult.astype(np.float64)))
+
+    support = np.min([np.bincount(r[3], minlength=K - 1) for r in rows], axis=0)   # rows per pair, fewest channel
 
     def residuals(coefs, lnR):
         """Per channel ``p(Ma)``, ``R_k p(Mb)`` and ``k`` of every row."""
@@ -341,9 +334,6 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
         """The ratios after alternating the least-squares fit and the ratio update (from the
         stated ratios, or from ``start``); the stated ones without ``estimate``."""
         lnR = (lnR_nom if start is None else start).copy()
-        # only a pair with enough rows determines its ratio: a polynomial of N + 1 coefficients
-        # fits a handful of rows at any ratio, so there a re-estimated ratio would follow the
-        # noise (and the stated span would push the error onto the other ratios)
         free = support >= RATIO_ROWS_PER_COEFFICIENT * (deg + 1)
         for _ in range(max_iter if estimate and int(free.sum()) >= 2 else 0):
             # plain (absolute-error) least squares, as in the paper; the ratios converge on the
@@ -420,8 +410,7 @@ def calibrate_mitsunaga1999(images, exposure_times, *, degree: int | None = None
     M = np.arange(levels) / top
     logx = np.full((levels, C), np.nan)
     for c in range(C):
-        p = np.polynomial.polynomial.polyval(M, coefs[c])
-        p = np.maximum.accumulate(p)
+        p = np.maximum.accumulate(np.polynomial.polynomial.polyval(M, coefs[c]))
         good = p > 1e-9 * p[-1]
         logx[good, c] = np.log(p[good])
     inverse = finalise(logx, None)
