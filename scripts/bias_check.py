@@ -1,6 +1,6 @@
 """Does the jackknife bias correction move a score toward the value at more samples?
 
-    python scripts/bias_check.py [--factor 4] [--geometry same|own] [--cache DIR] [--scene TASK=SCENE ...]
+    python scripts/bias_check.py [--factor 4] [--geometry same|own] [--seeds N] [--cache DIR] [--scene TASK=SCENE ...]
 
 Renders the scenes at draft quality and at ``factor`` times draft's samples (same resolution),
 scores every job of the tasks on them, and for every headline-metric cell (job, algorithm) whose
@@ -13,6 +13,12 @@ normals, depth, coverage, pure mask, object ids), so the two differ in their lig
 only, which is what the jackknife bias estimates (its replicates share the geometry,
 docs/science.md §8).  ``own``: each keeps its own; the difference then also holds the
 geometry's footprint sampling at 1x against ``factor``x samples, a bias that no replicate sees.
+
+``--seeds N`` (default 1) renders both at render seeds ``0..N-1`` and also compares the means over
+the seeds: ``mean(v - bias)`` against ``mean(v)`` as estimates of the ``factor``x mean, which
+separates the bias estimate's own noise from a single draw's, and counts separately the cells
+whose mean 1x and ``factor``x values differ beyond 2 standard errors of the means (a bias the
+seeds resolve).
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ def main(argv=None) -> int:
     ap.add_argument("--factor", type=float, default=4.0)
     ap.add_argument("--geometry", choices=["same", "own"], default="same",
                     help="the factor-x ground truth with the 1x geometry (same) or its own (own)")
+    ap.add_argument("--seeds", type=int, default=1, help="render seeds 0..N-1 (default 1)")
     ap.add_argument("--cache", default=None)
     ap.add_argument("--scene", action="append", default=None, metavar="TASK=SCENE")
     a = ap.parse_args(argv)
@@ -77,24 +84,32 @@ def main(argv=None) -> int:
 
     tasks = load_tasks(sorted({t for t, _ in pairs}))
     reg = builtin_registry(tasks)
-    vals = {}
+    if a.seeds < 1:
+        print("bias_check.py: --seeds must be at least 1", file=sys.stderr)
+        return 1
+    vals = {}          # (job key, algorithm) -> {profile name: score} at render seed 0
+    by_seed = {}       # (job key, algorithm) -> {profile name: [score per render seed]}
     cache = RenderCache(a.cache) if a.cache else None
-    base = GroundTruthSource(draft, cache=cache)
-    for q in (draft, more):
-        src = base if q is draft else (SameGeometry(q, base, cache=cache) if a.geometry == "same"
-                                       else GroundTruthSource(q, cache=cache))
-        for tname, scene in pairs:
-            task = tasks[tname]
-            for job in [j for j in task.jobs(draft) if j.scene.split(":")[0] == scene and j.param("plot") is None]:
-                res = execute_job(task, job, src.specs([job.scene, *job.extra_scenes]), src, 0, "j",
-                                  reg.for_task(tname), q)
-                if res["error"]:
-                    print(res["error"], file=sys.stderr)
-                    return 1
-                for s in res["scores"]:
-                    if s["metric"] == task.headline_metric:
-                        vals.setdefault((job.key, s["algorithm"]), {})[q.name] = s
-        print(f"{q.name} done", file=sys.stderr, flush=True)
+    for seed in range(a.seeds):
+        base = GroundTruthSource(draft, cache=cache, render_seed=seed)
+        for q in (draft, more):
+            src = base if q is draft else (SameGeometry(q, base, cache=cache, render_seed=seed)
+                                           if a.geometry == "same" else GroundTruthSource(q, cache=cache, render_seed=seed))
+            for tname, scene in pairs:
+                task = tasks[tname]
+                for job in [j for j in task.jobs(draft) if j.scene.split(":")[0] == scene and j.param("plot") is None]:
+                    res = execute_job(task, job, src.specs([job.scene, *job.extra_scenes]), src, 0, "j",
+                                      reg.for_task(tname), q)
+                    if res["error"]:
+                        print(res["error"], file=sys.stderr)
+                        return 1
+                    for s in res["scores"]:
+                        if s["metric"] == task.headline_metric:
+                            key = (job.key, s["algorithm"])
+                            if seed == 0:
+                                vals.setdefault(key, {})[q.name] = s
+                            by_seed.setdefault(key, {}).setdefault(q.name, []).append(s)
+            print(f"render seed {seed}: {q.name} done", file=sys.stderr, flush=True)
     better, n, jobs = 0, 0, set()
     subsets = {"stable (replicates not bimodal)": [0, 0], "marked (|bias| > SE, stable)": [0, 0],
                "1x and 4x differ beyond 2 SE (stable)": [0, 0]}
@@ -123,7 +138,41 @@ def main(argv=None) -> int:
           f"{len(jobs)} jobs")
     for name, (k, m) in subsets.items():
         print(f"  {name}: {k} of {m} ({100 * k / max(m, 1):.0f} %)")
+    if a.seeds > 1:
+        print(seed_means(by_seed, draft.name, more.name, a.factor))
     return 0
+
+
+def seed_means(by_seed: dict, one: str, more: str, factor: float) -> str:
+    """Per-draw and seed-mean fractions of cells whose bias-corrected 1x value is closer to the
+    ``factor``x one, and the same among the cells whose seed means differ beyond 2 SEM."""
+    import numpy as np
+
+    draws = [0, 0]
+    means = [0, 0]
+    resolved = [0, 0]
+    for d in by_seed.values():
+        s1, s4 = d.get(one, []), d.get(more, [])
+        if len(s1) != len(s4) or len(s1) < 2 or any(s.get("bias") is None or s["bias"] != s["bias"] for s in s1):
+            continue
+        v1 = np.array([s["value"] for s in s1])
+        b1 = np.array([s["bias"] for s in s1])
+        v4 = np.array([s["value"] for s in s4])
+        if np.ptp(np.r_[v1, v4]) <= 1e-5 + 1e-4 * abs(v4).max():
+            continue
+        for x, b, y in zip(v1, b1, v4, strict=True):
+            draws[0] += abs(x - b - y) < abs(x - y)
+            draws[1] += 1
+        ok = abs(v1.mean() - b1.mean() - v4.mean()) < abs(v1.mean() - v4.mean())
+        means[0] += ok
+        means[1] += 1
+        sem = np.sqrt(v1.var(ddof=1) / len(v1) + v4.var(ddof=1) / len(v4))
+        if abs(v1.mean() - v4.mean()) > 2 * sem:
+            resolved[0] += ok
+            resolved[1] += 1
+    pct = lambda k, m: f"{k} of {m} ({100 * k / max(m, 1):.0f} %)"  # noqa: E731
+    return (f"over {len(next(iter(by_seed.values()))[one])} render seeds: single draws {pct(*draws)} closer to "
+            f"{factor:g}x; seed means {pct(*means)}; cells whose seed means differ beyond 2 SEM {pct(*resolved)}")
 
 
 if __name__ == "__main__":
