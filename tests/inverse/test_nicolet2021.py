@@ -41,6 +41,7 @@ def test_methods_table():
     (dict(levels=(1,), iterations=(0,)), "budget is 0"),
     (dict(spp=0), "spp"),
     (dict(smoothness=-1.0), "smoothness"),
+    (dict(refine_lit=1.5), "refine_lit"),
     (dict(start=(np.zeros((3, 3)), np.zeros((16, 16)))), "start"),
 ])
 def test_bad_inputs_raise_with_a_fix(groove, change, match):
@@ -147,6 +148,7 @@ def test_small_render_recovers_a_groove_from_a_shallow_start(groove):
     assert res.paths > 0 and res.options["variant"].endswith("_ad_rgb")
     vs = res.options["versus_start"]
     assert vs["kept_fit"] and vs["improvement"] > 2 * vs["se"]      # far better than the start: kept
+    assert res.options["refined"] > 0.9                              # direct light: the pixels refitted
 
 
 @pytest.mark.render
@@ -166,7 +168,7 @@ def test_a_fit_worse_than_its_start_gives_the_start_back(groove):
         return float(np.degrees(np.arccos(np.clip((nn * truth).sum(-1), -1, 1))).mean())
 
     kw = dict(mask=mask, scene=groove, max_depth=2, iterations=(6,), spp=8, spp_grad=4, lr_height=0.05, seed=2,
-              start=(z_true, np.full((n, n), 0.9)))
+              start=(z_true, np.full((n, n), 0.9)), refine_lit=0)   # the height field's own normals
     kept = inverse_rendering_nicolet2021(targets, lights, **kw)
     walked = inverse_rendering_nicolet2021(targets, lights, keep_start=0, **kw)
     vs = kept.options["versus_start"]
@@ -176,6 +178,44 @@ def test_a_fit_worse_than_its_start_gives_the_start_back(groove):
     np.testing.assert_allclose(kept.normals, kept.initial_normals)   # a given start: its own normals
     assert ang(kept.normals) < 1e-6
     np.testing.assert_allclose(np.pi * kept.albedo, 0.9)
+
+
+def test_direct_light_refinement_refits_each_pixel_on_the_measurements_the_shape_lights():
+    """The cup's Lambertian images under 8 sources with a planted cast shadow (zero) and a
+    planted half shadow (half the light) on some measurements; the shape handed to the refinement
+    has normals 3 degrees off and its render holds the same shadows.  Every pixel with 3 fully
+    lit measurements gets the true normal and albedo exactly; Woodham's least squares, which keeps
+    the half-shadowed measurements, does not.  Half-shadowed measurements count as lit below
+    ``refine_lit = 0.5``, and then the refit is biased like Woodham's."""
+    from pbrbench.infer.photometric_stereo import METHODS as PS
+    from pbrbench.shading.lambert import lambertian_images, ring_lights
+    from pbrbench.shading.surfaces import on_grid
+
+    s = on_grid("cup", 32, half_width=1.0)
+    lights = ring_lights(8)
+    true_n, alb = np.where(s.mask[..., None], s.normals, 0.0), 0.9 / np.pi
+    rng = np.random.default_rng(4)
+    vis = np.ones((8, 32, 32))
+    vis[rng.random(vis.shape) < 0.15] = 0.0
+    vis[rng.random(vis.shape) < 0.15] = 0.5
+    imgs = lambertian_images(true_n, alb, lights, mask=s.mask) * vis
+    tilt = np.deg2rad(3.0)
+    shape_n = true_n @ np.array([[1, 0, 0], [0, np.cos(tilt), -np.sin(tilt)], [0, np.sin(tilt), np.cos(tilt)]])
+    rho = np.full((32, 32), 0.8)          # the shape's albedo (rho, not divided by pi): also off
+    rendered = (rho / np.pi)[None] * np.maximum(0.0, np.einsum("hwc,kc->khw", shape_n, lights)) * vis
+    n, a, ok = N._refine_direct(imgs, lights, s.mask, shape_n, rho, rendered, 0.9)
+
+    def ang(nn, where):
+        return np.degrees(np.arccos(np.clip((nn * true_n).sum(-1), -1, 1)))[where]
+
+    assert ok.sum() > 0.9 * s.mask.sum() and not (ok & ~s.mask).any()
+    np.testing.assert_allclose(n[ok], true_n[ok], atol=1e-12)
+    np.testing.assert_allclose(a[ok], alb, rtol=1e-9)
+    np.testing.assert_array_equal(n[s.mask & ~ok], shape_n[s.mask & ~ok])   # not refitted: the shape's
+    wood = PS["woodham1980"](imgs, lights, mask=s.mask)
+    assert ang(wood.normals, ok).mean() > 1.0
+    n_half, _, _ = N._refine_direct(imgs, lights, s.mask, shape_n, rho, rendered, 0.4)
+    assert ang(n_half, ok).mean() > 1.0
 
 
 def _cup_start(max_depth, start=None, n=32):
