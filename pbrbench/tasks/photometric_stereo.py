@@ -48,7 +48,7 @@ max_depth, seed)`` with the job's :class:`~pbrbench.scene.spec.SceneSpec` (camer
 extent) and the transport of its images (``max_depth`` -1 under ``global``, else 2).  They render
 (minutes a scene at standard), so they run only on the highest albedo of the concave families
 (:data:`INVERSE_FAMILIES`; ``ps_groove`` alone at a short-subset quality) under
-:data:`INVERSE_CONDITIONS` (``global`` alone at a short-subset quality); their job also shows the
+:data:`INVERSE_CONDITIONS` (``global`` and ``local``; ``global`` alone at a short-subset quality); their job also shows the
 loss curve and the angular error of their start (Woodham) beside the final one.
 
 Evaluation domain (algorithm independent): the ground-truth mask eroded by one pixel, restricted
@@ -98,10 +98,11 @@ NOISE = 0.01
 INVERSE_FAMILIES = ("ps_groove", "ps_cup", "ps_cap")   # concave: where every local method is biased
 SHORT_INVERSE_FAMILIES = ("ps_groove",)
 INVERSE_APPLIES = ("global", "local")  # the transports the methods model (not area sources)
-# where the benchmark runs them: global alone (at standard one call per job, its standard errors from the noise scales
-# over render seeds, pbrbench/bench/noise_scales.json; elsewhere five: the images and the four delete-one-group
-# replicates; their local results are measured in docs/inverse.md)
-INVERSE_CONDITIONS = ("global",)
+# where the benchmark runs them: global and local at standard (one call per job, its standard errors from the noise
+# scales over render seeds, pbrbench/bench/noise_scales.json: so the headline has the method's local score and the cost
+# of interreflection to it), global alone at draft; elsewhere five calls: the images and the four delete-one-group
+# replicates
+INVERSE_CONDITIONS = ("global", "local")
 SHORT_INVERSE_CONDITIONS = ("global",)
 LIT = 0.05            # a light lights a pixel above this fraction of its peak shading
 AMBIENT = 0.1         # ambient irradiance of local+ambient<level>: this fraction of the sources' mean irradiance
@@ -206,10 +207,10 @@ class PhotometricStereoTask(Task):
                           budgets={"draft": {"iterations": (10,), "spp": 8, "spp_grad": 2, "lr_height": 0.005}},
                           cost_note="analysis by synthesis: Adam over a height field and an albedo texture, each "
                                     "iteration a Mitsuba render of every light and its gradient (about 47 M camera "
-                                    "paths per call at standard), called once per job at standard (its standard errors "
-                                    "from eight independent render seeds, docs/uncertainty.md) and five times at draft "
-                                    "(the images and the four delete-one-group replicates); run on three scenes only "
-                                    "(docs/inverse.md)")
+                                    "paths per call at standard), called once per job where the noise scales cover it (its "
+                                    "standard errors from eight independent render seeds, docs/uncertainty.md), else five "
+                                    "times (the images and the four delete-one-group replicates); run on three scenes, "
+                                    "under global and local at standard and global at draft (docs/inverse.md)")
                 for n, fn in INVERSE.items()]
         return out
 

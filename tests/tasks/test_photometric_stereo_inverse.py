@@ -23,7 +23,8 @@ def test_registered_as_inverse_with_the_scene_interface():
 
 @pytest.mark.parametrize("scene, cond, quality, runs", [
     ("ps_groove[albedo=0.9]", "global", "standard", True),
-    ("ps_groove[albedo=0.9]", "local", "standard", False),   # global alone (its cost)
+    ("ps_groove[albedo=0.9]", "local", "standard", True),    # local too: its noise scales are measured
+    ("ps_groove[albedo=0.9]", "local+noise0.01", "standard", False),
     ("ps_cup[albedo=0.9]", "global", "standard", True),
     ("ps_cap[albedo=0.9]", "global", "standard", True),
     ("ps_groove[albedo=0.5]", "global", "standard", False),   # the highest albedo only
@@ -42,7 +43,7 @@ def _fake_registry(fn):
                      Algorithm("inverse:fake", "photometric_stereo", fn, interface="scene", conditions=("global", "local"))])
 
 
-def test_scene_interface_call_scores_and_figures(monkeypatch):
+def test_scene_interface_call_scores_and_figures():
     gt, vec = ps_gt()
     seen = {}
 
@@ -70,11 +71,7 @@ def test_scene_interface_call_scores_and_figures(monkeypatch):
     after = res.error_maps["angular error (deg): inverse:fake"]
     assert np.nanmean(before) > 1.0 > np.nanmean(after)
 
-    # local (which the benchmark skips for its cost, a caller may run): the transport of the
-    # images is direct light (max_depth 2)
-    import pbrbench.tasks.photometric_stereo as ps
-
-    monkeypatch.setattr(ps, "INVERSE_CONDITIONS", ("global", "local"))
+    # local (run at standard): the transport of the images is direct light (max_depth 2)
     run_task(TASK, ps_job("local", lights=vec, scene="ps_groove[albedo=0.9]"), {"ps_groove[albedo=0.9]": gt},
              quality="standard", registry=_fake_registry(fake))
     assert seen["max_depth"] == 2
