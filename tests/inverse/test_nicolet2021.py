@@ -218,6 +218,32 @@ def test_direct_light_refinement_refits_each_pixel_on_the_measurements_the_shape
     assert ang(n_half, ok).mean() > 1.0
 
 
+@pytest.mark.render
+def test_without_the_start_comparison_the_refit_renders_the_fit_itself(groove):
+    """``keep_start=0`` (no comparison, so no render of it to reuse): the direct-light refit
+    renders the fit on its own.  The height step walks the fit away from the true groove (11 degrees
+    mean without the refit), yet the fit still tells which sources reach each pixel, so the refit
+    recovers the true normals and albedo."""
+    from pbrbench.inverse.heightfield import pixel_normals
+
+    n = 16
+    targets, lights, hf, z_true = _groove_targets(groove, n, seed=5)
+    truth = pixel_normals(z_true, hf.h)
+    kw = dict(mask=np.ones((n, n), bool), scene=groove, max_depth=2, iterations=(6,), spp=8, spp_grad=4,
+              lr_height=0.05, seed=2, start=(z_true, np.full((n, n), 0.9)), keep_start=0)
+    walked = inverse_rendering_nicolet2021(targets, lights, refine_lit=0, **kw)
+    refit = inverse_rendering_nicolet2021(targets, lights, **kw)
+
+    def ang(nn):
+        return float(np.degrees(np.arccos(np.clip((nn * truth).sum(-1), -1, 1))).mean())
+
+    assert refit.options["versus_start"] is None and walked.options["refined"] is None
+    assert refit.options["refined"] > 0.9
+    assert ang(walked.normals) > 1.0, ang(walked.normals)
+    assert ang(refit.normals) < 0.01, ang(refit.normals)
+    np.testing.assert_allclose(np.pi * refit.albedo, 0.9, rtol=1e-3)
+
+
 def _cup_start(max_depth, start=None, n=32):
     """``N._start`` on the local (direct-light) images of a concave cup: Lambertian shading of the
     true normals, no interreflection."""
