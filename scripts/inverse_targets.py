@@ -3,8 +3,10 @@
     python scripts/inverse_targets.py --cache CACHE [--render-seed S] [--conditions local,global]
         [--scenes FOLDER] [--option refine_lit=0] [SCENE ...]
 
-For each scene and condition: the mean angular error (degrees) over the task's evaluation domain
-of ``inverse_rendering_nicolet2021`` (the standard budget, the transport of the condition, seed 0)
+For each scene and condition: the task's ``normal_mean_deg`` (``pbrbench.metrics.normals``'s
+``normal_scores``: the mean angular error over the task's evaluation domain, a pixel a method leaves
+unsolved counted at 90 degrees) of ``inverse_rendering_nicolet2021`` (the standard budget, the
+transport of the condition, seed 0)
 and of ``woodham1980`` on the same images, the fraction of pixels the direct-light refinement
 refitted, whether the fit or its start stood, and the seconds of the inverse call.  Standard
 renders of ``CACHE`` at render seed ``S`` (a missing scene is rendered).  Nothing is fetched.
@@ -18,17 +20,10 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _ps_inputs import ps_inputs  # noqa: E402
 
 SCENES = ("ps_cup[albedo=0.9]", "ps_groove[albedo=0.9]", "ps_cap[albedo=0.9]")
-
-
-def angular_error(n, t, where) -> float:
-    c = (n * t).sum(-1) / np.maximum(np.linalg.norm(n, axis=-1) * np.linalg.norm(t, axis=-1), 1e-12)
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))[where].mean())
 
 
 def main(argv=None) -> int:
@@ -43,6 +38,7 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     from pbrbench.infer.photometric_stereo import METHODS
     from pbrbench.inverse.nicolet2021 import inverse_rendering_nicolet2021
+    from pbrbench.metrics.normals import normal_scores
     from pbrbench.scene.load import SceneLibrary
 
     opts = {}
@@ -60,11 +56,10 @@ def main(argv=None) -> int:
         r = inverse_rendering_nicolet2021(imgs, lights, mask=mask, scene=spec, max_depth=depth, seed=0, **opts)
         sec = time.perf_counter() - t0
         w = METHODS["woodham1980"](imgs, lights, mask=mask)
-        where = domain & r.valid
+        err = [normal_scores(x.normals, n_true, domain, x.valid)[0]["normal_mean_deg"] for x in (r, w)]
         vs, ref = r.options["versus_start"], r.options["refined"]
         stood = "-" if vs is None else ("fit" if vs["kept_fit"] else "start")
-        print(f"{name:24s} {cond:16s} {angular_error(r.normals, n_true, where):8.3f} "
-              f"{angular_error(w.normals, n_true, where):8.3f} {'-' if ref is None else f'{ref:.3f}':>8s} "
+        print(f"{name:24s} {cond:16s} {err[0]:8.3f} {err[1]:8.3f} {'-' if ref is None else f'{ref:.3f}':>8s} "
               f"{stood:>6s} {sec:5.0f}", flush=True)
     return 0
 
