@@ -492,56 +492,47 @@ def _fit_level(fit: _Fit, f: int, n_it: int, last: bool, zc: np.ndarray, rho: np
     return zc, rho
 
 
-def _compare_to_start(fit: _Fit, zc0, rho0, zc, rho, spp: int, z_crit: float) -> dict:
-    """Whether the fit ``(zc, rho)`` matches the images worse than its start ``(zc0, rho0)`` by
-    more than the renders' noise.  Both are rendered at full resolution with one fresh seed
-    (common random numbers: the noise of the two renders largely cancels in the difference); the
-    data term is the fit's (the Cauchy scale of the start's residuals for both), per data pixel
-    summed over the lights.  Returns ``{"improvement", "se", "kept_fit"}``: the data term's
-    decrease and its standard error (``sqrt(n) sd`` of the ``n`` per-pixel differences), both
-    relative to the start's data term; the fit is kept unless ``improvement < -z_crit * se``;
-    and the two renders, (K, H, W) each."""
+def _renders(fit: _Fit, states, spp: int) -> list[np.ndarray]:
+    """(K, H, W) renders of each ``(corner heights, albedo)`` of ``states`` at full resolution under
+    the images' transport, all with one seed that none of the fit's renders uses (common random
+    numbers: the noise of two states' renders largely cancels in their difference)."""
     from pbrbench.inverse import heightfield as HF
     from pbrbench.inverse.render import HeightFieldScene
 
-    o, scene, imgs, data = fit.opt, fit.scene, fit.imgs, fit.data
-    k = imgs.shape[0]
-    hf = HF.HeightField(fit.surf, float(scene.camera.half_width), extend=fit.ext)
-    zs = (hf.params_from_corners(zc0), hf.params_from_corners(zc))
-    sc = HeightFieldScene(scene, hf, zs[0], rho0, fit.emitters, max_depth=fit.max_depth,
-                          rr_depth=int(scene.render.rr_depth), spp=spp, integrator="path")
-    seed = o.seed * 100003 + 7_000_003            # none of the fit's seeds
-    per, c2, renders = [], None, []
-    for zz, rr in zip(zs, (rho0, rho), strict=True):
-        sc.set_state(zz, rr, grad=False)
-        renders.append(sc.renders(seed))
-        res = (renders[-1] - imgs)[:, data]
+    hf = HF.HeightField(fit.surf, float(fit.scene.camera.half_width), extend=fit.ext)
+    zs = [hf.params_from_corners(zc) for zc, _ in states]
+    sc = HeightFieldScene(fit.scene, hf, zs[0], states[0][1], fit.emitters, max_depth=fit.max_depth,
+                          rr_depth=int(fit.scene.render.rr_depth), spp=spp, integrator="path")
+    seed = fit.opt.seed * 100003 + 7_000_003
+    out = []
+    for z, (_, rho) in zip(zs, states, strict=True):
+        sc.set_state(z, rho, grad=False)
+        out.append(sc.renders(seed))
+    fit.paths += len(states) * fit.imgs.shape[0] * spp * fit.surf.size
+    return out
+
+
+def _compare_to_start(fit: _Fit, zc0, rho0, zc, rho, spp: int, z_crit: float) -> dict:
+    """Whether the fit ``(zc, rho)`` matches the images worse than its start ``(zc0, rho0)`` by
+    more than the renders' noise.  Both are rendered at full resolution with one fresh seed
+    (:func:`_renders`); the data term is the fit's (the Cauchy scale of the start's residuals for
+    both), per data pixel summed over the lights.  Returns ``{"improvement", "se", "kept_fit"}``:
+    the data term's decrease and its standard error (``sqrt(n) sd`` of the ``n`` per-pixel
+    differences), both relative to the start's data term; the fit is kept unless
+    ``improvement < -z_crit * se``; and the two renders, (K, H, W) each."""
+    o, imgs, data = fit.opt, fit.imgs, fit.data
+    renders = _renders(fit, ((zc0, rho0), (zc, rho)), spp)
+    per, c2 = [], None
+    for r in renders:
+        res = (r - imgs)[:, data]
         if c2 is None:
             c2 = _cauchy_scale2(res, o.robust) if o.robust > 0 else 0.0
         per.append((c2 * np.log1p(res * res / c2) if c2 > 0 else res * res).sum(axis=0))
-    fit.paths += 2 * k * spp * fit.surf.size
-    del sc
     d = per[1] - per[0]
     total0 = max(float(per[0].sum()), 1e-300)
     se = float(np.sqrt(d.size) * d.std(ddof=1)) / total0 if d.size > 1 else float("inf")
     imp = -float(d.sum()) / total0
     return {"improvement": imp, "se": se, "kept_fit": not imp < -z_crit * se}, renders
-
-
-def _render_direct(fit: _Fit, zc, rho, spp: int) -> np.ndarray:
-    """(K, H, W) renders of corner heights ``zc`` and albedo ``rho`` at full resolution under the
-    images' transport, one fresh seed."""
-    from pbrbench.inverse import heightfield as HF
-    from pbrbench.inverse.render import HeightFieldScene
-
-    hf = HF.HeightField(fit.surf, float(fit.scene.camera.half_width), extend=fit.ext)
-    z = hf.params_from_corners(zc)
-    sc = HeightFieldScene(fit.scene, hf, z, rho, fit.emitters, max_depth=fit.max_depth,
-                          rr_depth=int(fit.scene.render.rr_depth), spp=spp, integrator="path")
-    sc.set_state(z, rho, grad=False)
-    out = sc.renders(fit.opt.seed * 100003 + 7_000_003)
-    fit.paths += fit.imgs.shape[0] * spp * fit.surf.size
-    return out
 
 
 def _refine_direct(imgs, lv, data, normals, rho, rendered, lit_fraction: float):
@@ -550,23 +541,20 @@ def _refine_direct(imgs, lv, data, normals, rho, rendered, lit_fraction: float):
 
     ``normals`` (H, W, 3) and ``rho`` (H, W) are the shape's, ``rendered`` (K, H, W) its direct
     render; a measurement is lit where ``rendered >= lit_fraction * (rho / pi) max(0, N.s_k)``
-    and the image is above 0.01 of the pixel's brightest measurement."""
+    and the image is above 0.01 of the pixel's brightest measurement.  The solve is photometric
+    stereo's own least squares on those measurements (at least 3, sources spanning 3-D), kept
+    where the normal faces the camera."""
+    from pbrbench.infer.photometric_stereo._common import least_squares, prepare
+
     shade = (rho / np.pi)[None] * np.maximum(0.0, np.einsum("hwc,kc->khw", normals, lv))
     peak = np.maximum(imgs.max(axis=0, keepdims=True), np.finfo(float).tiny)
     lit = (shade > 0) & (rendered >= lit_fraction * shade) & (imgs > 0.01 * peak) & data[None]
-    w = lit.astype(float)
-    A = np.einsum("khw,kc,kd->hwcd", w, lv, lv)
-    b = np.einsum("khw,khw,kc->hwc", w, imgs, lv)
-    ok = data & (lit.sum(axis=0) >= 3)
-    ev = np.linalg.eigvalsh(A[ok])
-    good = ev[:, 0] > 1e-6 * np.maximum(ev[:, -1], np.finfo(float).tiny)   # sources spanning 3-D
-    ok[ok] = good
-    g = np.zeros(normals.shape)
-    g[ok] = np.linalg.solve(A[ok], b[ok][..., None])[..., 0]
-    ok &= g[..., 2] > 0                                                    # facing the camera
-    alb = np.linalg.norm(g, axis=-1)
-    n = np.where(ok[..., None], g / np.where(ok, alb, 1.0)[..., None], normals)
-    return n, np.where(ok, alb, rho / np.pi), ok
+    p = prepare(imgs, lv, data, None, 0.0, None, 3)
+    used = lit.reshape(lit.shape[0], -1)
+    r = least_squares(p, used_in=used if p.sel is None else used[:, p.sel])
+    ok = r.valid & (r.normals[..., 2] > 0)                                 # facing the camera
+    n = np.where(ok[..., None], r.normals, normals)
+    return n, np.where(ok, r.albedo, rho / np.pi), ok
 
 
 def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int = -1,
@@ -706,7 +694,7 @@ def inverse_rendering_nicolet2021(images, lights, *, mask, scene, max_depth: int
     refined = None
     if max_depth == 2 and o.refine_lit > 0:  # direct light: each pixel refitted where the shape lights it fully
         if rendered is None:
-            rendered = _render_direct(fit, zc, rho, o.spp)
+            rendered = _renders(fit, ((zc, rho),), o.spp)[0]
         n_r, a_r, ok = _refine_direct(imgs, lv, data, mesh_normals, rho, rendered, o.refine_lit)
         normals = np.where(ok[..., None], n_r, normals)
         albedo = np.where(ok, a_r, albedo)

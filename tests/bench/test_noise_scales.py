@@ -138,6 +138,21 @@ def test_the_committed_table_is_well_formed():
             assert e["bias"] == pytest.approx(e["mean"] - twin["mean"], abs=1e-12) and e["bias_se"] >= 0
 
 
+def test_the_committed_table_is_for_the_algorithms_as_they_are():
+    """An entry whose algorithm version is not the code's is silently unused: the algorithm falls back to
+    its replicates (for inverse rendering about five times its benchmark time).  A change to its module
+    must be re-measured (scripts/noise_scales.py) or carried with evidence (the table's "about")."""
+    from pbrbench.tasks import get_tasks
+
+    entries = json.loads(SCALES_FILE.read_text())["entries"]
+    reg = builtin_registry(get_tasks(sorted({e["task"] for e in entries})))
+    current = {(a.task, a.name): a.full_version for a in reg}
+    stale = sorted({(e["task"], e["algorithm"], e["algorithm_version"]) for e in entries
+                    if current.get((e["task"], e["algorithm"])) != e["algorithm_version"]})
+    assert not stale, f"noise scales of other versions than the code's: {stale}, code: " + str(
+        {k: current.get(k[:2]) for k in stale})
+
+
 def test_a_draft_scale_with_a_bias_reports_it():
     task, algs, gts, job, res, version = _setup()
     table = {k: (0.25, 7.0, 0.75) for k in _table(version)}
