@@ -71,8 +71,13 @@ def summary_lines(outcome) -> list[str]:
         lines.append(f"{h['task']}: {h['metric']} ({h['better']} is better; {h['reference']} and the cost of each "
                      "effect, mean over matched scenes ± 1 SE; ( ) = inside the 95 % t interval of zero; "
                      "\"bias\": noise-limited, |Monte Carlo bias| > SE; ! = regression)")
-        lines += text_table([[r["algorithm"], *t] for r, t in zip(h["rows"], texts, strict=True)],
+        names = [r["algorithm"] + (f" ({r['subset'][0]} of {r['subset'][1]} scenes)" if r.get("subset") else "")
+                 for r in h["rows"]]
+        lines += text_table([[n, *t] for n, t in zip(names, texts, strict=True)],
                             header=["algorithm", *conds], indent="  ", gap="  ")
+        if any(r.get("subset") for r in h["rows"]):
+            lines.append("  (n of N scenes): its row's means are over its own scenes; the report gives it beside the "
+                         "others on those scenes")
     return lines
 
 

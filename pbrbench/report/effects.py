@@ -135,13 +135,18 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
     list of dict
         Per task ``{"task", "metric", "better", "unit", "reference", "columns", "rows", "groups",
         "noise_floor", "description", "notes", "partial"}``: ``rows`` ``[{"algorithm", "group",
-        "cells": [cell per column]}]`` (``group`` the class label, None without classes; a cell
+        "cells": [cell per column], "subset"}]`` (``group`` the class label, None without classes;
+        ``subset`` None, or ``(n, of)`` for an algorithm scored under the reference on ``n`` of the
+        ``of`` scenes of its row group the algorithms are scored on there, whose reference mean is then not comparable
+        with the other rows'; a cell
         also lists the ``scenes`` of its scores; a column ``{"label", "condition", "group",
         "effect", "value"}``, ``value`` True for a column of a condition's own mean); ``groups`` ``[{"label", "scenes"}]`` in row
         order (empty without classes); ``partial`` the algorithms with no score under the
         reference (run on a subset of scenes and conditions), each condition's mean ``beside``
         every algorithm scored on all the same scenes (``[{"algorithm", "condition", "scenes",
-        "value", "se", "n", "beside": [...]}]``).
+        "value", "se", "n", "beside": [...]}]``), and likewise every condition of each ``subset``
+        row, the reference included (those lines with ``"ref_n"`` of ``"of"``, the row's and all the algorithms'
+        numbers of reference scenes).
     """
     geometry = geometry or {}
     layout = layout or {}
@@ -193,9 +198,14 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
             row_groups = [(label or "other scenes", found[label])
                           for label in sorted(found, key=lambda g: (g is None, (rank[g], g) if g else ()))]
         table, partial = [], []
+        ref_keys = set().union(*(at[(a, ref)].keys() for a in algs))
         for a in algs:
             if not at[(a, ref)]:   # run on a subset only (e.g. an expensive method): beside the others on its scenes
                 partial += _beside(a, conds, algs, at)
+            elif len(at[(a, ref)]) < len(ref_keys):
+                # a row over fewer scenes than the others: its reference mean is not comparable with
+                # theirs, so it is also given beside every algorithm scored on its scenes
+                partial += [dict(p, of=len(ref_keys), ref_n=len(at[(a, ref)])) for p in _beside(a, [ref] + conds, algs, at)]
         for label, group_keys in row_groups:
             for a in algs:
                 base = {k: v for k, v in at[(a, ref)].items() if k in group_keys}
@@ -217,7 +227,9 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
                         continue
                     cells.append(dict(difference([other[k] for k in keys], [base[k] for k in keys]),
                                       scenes=[other[k]["scene"] for k in keys]))
-                table.append({"algorithm": a, "group": label, "cells": cells})
+                of = len(ref_keys & set(group_keys))
+                table.append({"algorithm": a, "group": label, "cells": cells,
+                              "subset": (len(base), of) if len(base) < of else None})
         ses = sorted(s["uncertainty"] for s in rows if s["condition"] == ref and finite(s.get("uncertainty")))
         floor = ses[len(ses) // 2] if ses else float("nan")
         groups = [{"label": label, "scenes": keys} for label, keys in row_groups

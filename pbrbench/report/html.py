@@ -117,7 +117,8 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
             for i, col in enumerate(t["columns"]):
                 if col["effect"]:
                     continue
-                cs = [r["cells"][i] for r in t["rows"] if r["group"] == g and r["cells"][i] is not None]
+                cs = [r["cells"][i] for r in t["rows"]
+                      if r["group"] == g and r["cells"][i] is not None and not r.get("subset")]
                 finite = [c["value"] for c in cs if math.isfinite(c["value"])]
                 ses = [c["se"] for c in cs if math.isfinite(c["se"])]
                 lo, hi = (min(finite), max(finite)) if finite else (float("nan"), float("nan"))
@@ -132,7 +133,8 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                     cells.append({"text": "", "value": None, "n": 0, "colour": None, "mark": None, "cls": ""})
                     continue
                 if not col["effect"]:
-                    colour = _colour(c["value"], *ranges[(r["group"], i)][:2], t["better"], ranges[(r["group"], i)][2])
+                    colour = None if r.get("subset") else _colour(c["value"], *ranges[(r["group"], i)][:2], t["better"],
+                                                                 ranges[(r["group"], i)][2])
                     cls = ""
                 else:
                     worse = (c["value"] > 0) == (t["better"] == "lower")
@@ -140,6 +142,10 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                     cls = "ns" if c["insignificant"] else ("cost" if c["significant"] and worse else
                                                             "gain" if c["significant"] else "")
                 title = f"n = {c['n']} scene(s)" + ("" if col["group"] is None else f", {col['group']}")
+                if r.get("subset") and not col["effect"]:
+                    title += (f"; scored on {r['subset'][0]} of the {r['subset'][1]} scenes: not coloured against "
+                              "the other rows (their means are over other scenes); the lines below the table put "
+                              "it beside them on its own scenes")
                 if math.isfinite(c.get("dof") or float("nan")) and c.get("dof"):
                     title += f"; {c['dof']:.3g} degrees of freedom"
                 if col["effect"]:
@@ -164,7 +170,7 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                 cells.append({"text": format_cell(c), "main": main, "note": f"({note}" if note else "",
                               "value": c["value"], "se": c["se"], "n": c["n"], "colour": colour,
                               "cls": cls, "title": title, "mark": mark})
-            rows.append({"algorithm": r["algorithm"], "group": r["group"], "cells": cells})
+            rows.append({"algorithm": r["algorithm"], "group": r["group"], "cells": cells, "subset": r.get("subset")})
         partial = [dict(p, text=format_cell(p), beside=[dict(b, text=format_cell(b)) for b in p["beside"]])
                    for p in t["partial"]]
         out.append(dict(t, conditions=[c["label"] for c in t["columns"]], rows=rows, partial=partial))

@@ -81,8 +81,8 @@ def test_an_algorithm_run_on_a_subset_is_shown_beside_the_others_on_its_scenes()
               s("ball", "global", 6.0, alg="ballonly")]
     (t,) = effect_tables(scores, INFO)
     assert [r["algorithm"] for r in t["rows"]] == ["ballonly", "m"]
-    (p,) = t["partial"]
-    assert p["algorithm"] == "inv" and p["condition"] == "global" and p["scenes"] == ["cup"]
+    (p,) = [p for p in t["partial"] if p["algorithm"] == "inv"]
+    assert p["condition"] == "global" and p["scenes"] == ["cup"] and "of" not in p
     assert p["value"] == pytest.approx(3.0) and p["se"] == pytest.approx(0.3)
     assert [(b["algorithm"], b["value"]) for b in p["beside"]] == [("m", pytest.approx(9.0))]  # not ballonly
 
@@ -183,3 +183,38 @@ def test_scene_classes_make_one_row_group_each_in_sort_order_with_values_beside_
     # without a layout: one ungrouped table, as before
     (t,) = effect_tables(scores, INFO)
     assert t["groups"] == [] and {r["group"] for r in t["rows"]} == {None} and len(t["rows"]) == 1
+
+
+def test_a_row_over_fewer_scenes_is_flagged_and_given_beside_the_others_on_its_scenes():
+    # "few" is scored under the reference on the hard cup only: its local mean (2.0) is below m's over
+    # both scenes (3.0) but above m's on the cup (1.5); the row says so and is not coloured against m
+    from pbrbench.report.html import headline_tables
+
+    scores = [s("cup", "local", 1.5), s("cup", "global", 9.0), s("ball", "local", 4.5), s("ball", "global", 5.0),
+              s("cup", "local", 2.0, alg="few"), s("cup", "global", 3.0, alg="few"),
+              s("cup", "local", 0.5, alg="n"), s("ball", "local", 0.5, alg="n")]
+    (t,) = effect_tables(scores, INFO)
+    rows = {r["algorithm"]: r for r in t["rows"]}
+    assert rows["few"]["subset"] == (1, 2) and rows["m"]["subset"] is None
+    lines = {p["condition"]: p for p in t["partial"] if p["algorithm"] == "few"}
+    assert set(lines) == {"local", "global"} and (lines["local"]["ref_n"], lines["local"]["of"]) == (1, 2)
+    assert lines["local"]["value"] == pytest.approx(2.0)
+    assert [(b["algorithm"], b["value"]) for b in lines["local"]["beside"]] == [("m", pytest.approx(1.5)),
+                                                                                ("n", pytest.approx(0.5))]
+    assert [(b["algorithm"], b["value"]) for b in lines["global"]["beside"]] == [("m", pytest.approx(9.0))]
+    (h,) = headline_tables(scores, INFO)
+    cells = {r["algorithm"]: r["cells"][0] for r in h["rows"]}
+    assert cells["few"]["colour"] is None and "1 of the 2 scenes" in cells["few"]["title"]
+    assert cells["m"]["colour"] is not None and cells["n"]["colour"] is not None
+
+
+def test_the_console_summary_labels_a_row_over_fewer_scenes():
+    from types import SimpleNamespace
+
+    from pbrbench.cli.run import summary_lines
+
+    scores = [s("cup", "local", 1.5), s("ball", "local", 4.5), s("cup", "local", 2.0, alg="few")]
+    lines = summary_lines(SimpleNamespace(scores=scores, task_info=INFO))
+    assert any(line.strip().startswith("few (1 of 2 scenes)") for line in lines)
+    assert not any(line.strip().startswith("m (") for line in lines)
+    assert "its row's means are over its own scenes" in lines[-1]
