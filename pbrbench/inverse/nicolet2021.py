@@ -541,17 +541,15 @@ def _refine_direct(imgs, lv, data, normals, rho, rendered, lit_fraction: float):
 
     ``normals`` (H, W, 3) and ``rho`` (H, W) are the shape's, ``rendered`` (K, H, W) its direct
     render; a measurement is lit where ``rendered >= lit_fraction * (rho / pi) max(0, N.s_k)``
-    and the image is above 0.01 of the pixel's brightest measurement.  The solve is photometric
-    stereo's own least squares on those measurements (at least 3, sources spanning 3-D), kept
-    where the normal faces the camera."""
-    from pbrbench.infer.photometric_stereo._common import least_squares, prepare
+    and the image is above 0.01 of the pixel's brightest measurement.  The solve is Woodham's
+    least squares on those measurements (at least 3, sources spanning 3-D), kept where the normal
+    faces the camera."""
+    from pbrbench.infer.photometric_stereo.woodham1980 import photometric_stereo_woodham1980
 
     shade = (rho / np.pi)[None] * np.maximum(0.0, np.einsum("hwc,kc->khw", normals, lv))
     peak = np.maximum(imgs.max(axis=0, keepdims=True), np.finfo(float).tiny)
     lit = (shade > 0) & (rendered >= lit_fraction * shade) & (imgs > 0.01 * peak) & data[None]
-    p = prepare(imgs, lv, data, None, 0.0, None, 3)
-    used = lit.reshape(lit.shape[0], -1)
-    r = least_squares(p, used_in=used if p.sel is None else used[:, p.sel])
+    r = photometric_stereo_woodham1980(imgs, lv, mask=data, used=lit)
     ok = r.valid & (r.normals[..., 2] > 0)                                 # facing the camera
     n = np.where(ok[..., None], r.normals, normals)
     return n, np.where(ok, r.albedo, rho / np.pi), ok

@@ -66,7 +66,7 @@ def test_option_the_method_does_not_accept(glossy):
     imgs, lights, _ = glossy
     with pytest.raises(ValueError, match=r"photometric_stereo\(method='woodham1980'\): unknown option\(s\) max_iter; "
                                          r"woodham1980 accepts mask, intensities, shadow_threshold, saturation, "
-                                         r"min_lights$"):
+                                         r"min_lights, used$"):
         solve_photometric_stereo(imgs, lights, max_iter=10)
     with pytest.raises(ValueError, match=r"unknown option\(s\) shadow; ikehata2012_l1 accepts .*max_iter"):
         solve_photometric_stereo(imgs, lights, method="ikehata2012_l1", shadow=0.1)

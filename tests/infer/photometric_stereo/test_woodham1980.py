@@ -182,3 +182,31 @@ def test_argument_errors(kwargs, match):
     args.update(kwargs)
     with pytest.raises(ValueError, match=match):
         photometric_stereo_woodham1980(**args)
+
+
+def test_given_measurements_replace_the_classification(sphere):
+    """``used`` names the measurements to fit: a planted half shadow (a lit measurement at half its
+    value, which the threshold keeps) biases the default fit and vanishes when it is left out."""
+    s, lit = sphere
+    n, m = s.normals, s.mask
+    imgs = lambertian_images(n, 0.7, CHAPTER_LIGHTS, mask=m)
+    on = (n @ CHAPTER_LIGHTS.T > 0).transpose(2, 0, 1) & m[None]
+    half = np.zeros_like(on)
+    half[0] = on[0] & (lit >= 4)                      # pixels that keep >= 3 lights without light 0
+    bad = np.where(half, 0.5 * imgs, imgs)
+    sel = half[0]
+    assert ang(photometric_stereo_woodham1980(bad, CHAPTER_LIGHTS, mask=m).normals, n)[sel].mean() > 1.0
+    r = photometric_stereo_woodham1980(bad, CHAPTER_LIGHTS, mask=m, used=on & ~half)
+    assert r.valid[sel].all() and ang(r.normals, n)[sel].max() < 1e-6
+    np.testing.assert_allclose(r.albedo[sel], 0.7, rtol=1e-9)
+    assert np.array_equal(r.n_used[m], (on & ~half).sum(0)[m])
+    none = photometric_stereo_woodham1980(bad, CHAPTER_LIGHTS, mask=m, used=np.zeros_like(on))
+    assert not none.valid.any()                       # no measurement: no pixel, not a guess
+
+
+@pytest.mark.parametrize("used", [np.ones((3, 4, 4), bool), np.ones((5, 128, 128), float)])
+def test_given_measurements_of_the_wrong_shape_or_type_are_refused(sphere, used):
+    s, _ = sphere
+    imgs = lambertian_images(s.normals, 0.7, CHAPTER_LIGHTS, mask=s.mask)
+    with pytest.raises(ValueError, match=r"used: .*pass a \(\d+, 128, 128\) boolean array"):
+        photometric_stereo_woodham1980(imgs, CHAPTER_LIGHTS, mask=s.mask, used=used)
