@@ -137,16 +137,15 @@ def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | Non
         "noise_floor", "description", "notes", "partial"}``: ``rows`` ``[{"algorithm", "group",
         "cells": [cell per column], "subset"}]`` (``group`` the class label, None without classes;
         ``subset`` None, or ``(n, of)`` for an algorithm scored under the reference on ``n`` of the
-        ``of`` scenes of its row group the algorithms are scored on there, whose reference mean is then not comparable
-        with the other rows'; a cell
-        also lists the ``scenes`` of its scores; a column ``{"label", "condition", "group",
+        ``of`` scenes its row group's algorithms are scored on, whose reference mean is then not
+        comparable with the other rows'; a cell also lists the ``scenes`` of its scores; a column ``{"label", "condition", "group",
         "effect", "value"}``, ``value`` True for a column of a condition's own mean); ``groups`` ``[{"label", "scenes"}]`` in row
         order (empty without classes); ``partial`` the algorithms with no score under the
         reference (run on a subset of scenes and conditions), each condition's mean ``beside``
         every algorithm scored on all the same scenes (``[{"algorithm", "condition", "scenes",
         "value", "se", "n", "beside": [...]}]``), and likewise every condition of each ``subset``
-        row, the reference included (those lines with ``"ref_n"`` of ``"of"``, the row's and all the algorithms'
-        numbers of reference scenes).
+        row, the reference included (those lines with ``"ref_n"`` and ``"of"``: the algorithm's and
+        all the algorithms' numbers of reference scenes).
     """
     geometry = geometry or {}
     layout = layout or {}
