@@ -19,7 +19,8 @@ of the benchmark to run:
 * ``groups``: every pass is rendered as this many independent sample groups (``spp / groups``
   samples each, seeds of their own), so every score gets a delete-one-group jackknife standard
   error with ``groups - 1`` degrees of freedom and a Monte Carlo bias estimate
-  (:mod:`pbrbench.bench.uncertainty`).
+  (:mod:`pbrbench.bench.uncertainty`); a scene file may ask for more (``render.min_groups``,
+  :meth:`Quality.groups_for`).
 
 ``draft`` is the CI setting (seconds per scene), ``standard`` the benchmark, ``high`` four times the
 samples.  Every ground truth and every run records its profile's name.  No code compares a
@@ -57,13 +58,19 @@ class Quality:
         s = max(self.res_scale, max(self.min_res, floor or 0) / min(w, h))
         return max(4, round(w * s)), max(4, round(h * s))
 
-    def spp(self, spp: int) -> int:
-        """Samples per pixel of a pass whose scene file asks for ``spp``: scaled, at least
-        ``min_spp``, and at least two per sample group (a group of one sample per pixel loses the
-        sampler's stratification inside the pixel: on a draft sphere, 4 groups of 1 sample doubled
-        photometric stereo's normal error against 2 groups of 2), never more than the file asks."""
+    def groups_for(self, floor: int | None = None) -> int:
+        """The number of independent sample groups of a scene whose file asks for at least
+        ``floor`` (``render.min_groups``): the larger of the two."""
+        return max(self.groups, floor or 0)
+
+    def spp(self, spp: int, groups: int | None = None) -> int:
+        """Samples per pixel of a pass whose scene file asks for ``spp``, rendered as ``groups``
+        sample groups (default :attr:`groups`): scaled, at least ``min_spp``, and at least two
+        per sample group (a group of one sample per pixel loses the sampler's stratification
+        inside the pixel: on a draft sphere, 4 groups of 1 sample doubled photometric stereo's
+        normal error against 2 groups of 2), never more than the file asks."""
         n = max(min(self.min_spp, spp), round(spp * self.spp_scale))
-        return max(n, min(spp, 2 * self.groups))
+        return max(n, min(spp, 2 * (groups or self.groups)))
 
     def render_key(self) -> dict:
         """What of this profile decides a render's content (part of the render cache's key)."""

@@ -238,10 +238,10 @@ class _Renderer:
         q = require(quality)
         self.quality = q.name
         self.res = q.resolution(spec.render.resolution, spec.render.min_resolution)
-        self.spp = q.spp(spec.render.spp)
+        self.groups = q.groups_for(spec.render.min_groups)   # independent sample groups of every pass
+        self.spp = q.spp(spec.render.spp, self.groups)
         self.seed = spec.render.seed
         self.target = q.noise_target          # (median, rms) relative sd of the passes, or None
-        self.groups = q.groups                # independent sample groups of every pass
         self.max_spp = int(round(q.max_spp_factor * self.spp))
         self.mask = None                      # pure pixels (from the AOVs, rendered first)
         self.spp_per_pass: dict[str, int] = {}
@@ -254,7 +254,7 @@ class _Renderer:
             self.progress(what)
 
     def render_groups(self, what: str, seed_offset: int, **kw) -> tuple[np.ndarray, np.ndarray]:
-        """Mean of ``G`` independent sample groups (:attr:`pbrbench.quality.Quality.groups`,
+        """Mean of ``G`` independent sample groups (:meth:`pbrbench.quality.Quality.groups_for`,
         each with ``spp / G`` samples and its own seed) and the delete-one-group deviations
         ``jk`` of shape ``(G, H, W, 3)``: ``X + jk[i]`` is the mean of every group but ``i``
         (:func:`loo_deviations`).

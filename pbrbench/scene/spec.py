@@ -527,6 +527,10 @@ class Render(Model):
     min_resolution: Annotated[int, _integer(4, 8192)] | None = Field(
         None, description="the fewest pixels a side a reduced profile (draft) may render: for scenes whose task needs "
                           "enough pixels in every part of the image (an HDR bracket's calibration)")
+    min_groups: Annotated[int, _integer(2, 16)] | None = Field(
+        None, description="the fewest independent sample groups every pass is rendered with, at every profile (more "
+                          "than the profile's: every score's standard error gets groups - 1 degrees of freedom); for "
+                          "scenes that a task's headline rests on nearly alone and whose scores are cheap to repeat")
 
     @field_validator("resolution", mode="before")
     @classmethod
@@ -547,6 +551,9 @@ class Render(Model):
         if self.min_resolution is not None and self.min_resolution > min(self.resolution):
             raise ValueError(f"min_resolution ({self.min_resolution}) must not exceed the smaller side of resolution "
                              f"{list(self.resolution)}; lower it or raise resolution")
+        if self.min_groups is not None and self.min_groups > self.spp:
+            raise ValueError(f"min_groups ({self.min_groups}) must not exceed spp ({self.spp}): every sample group needs "
+                             "a sample per pixel; lower min_groups or raise spp")
         return self
 
 
@@ -681,8 +688,9 @@ class SceneSpec(Model):
     def canonical(self) -> dict:
         """JSON-ready dict of everything that affects the render (no paths, no sweep)."""
         d = self.model_dump(mode="json", exclude={"base_dir", "source", "data_dirs", "sweep", "description", "reference", "tags"})
-        if d["render"].get("min_resolution") is None:   # unset: the hash of a file that does not use it is unchanged
-            d["render"].pop("min_resolution", None)
+        for k in ("min_resolution", "min_groups"):   # unset: the hash of a file that does not use it is unchanged
+            if d["render"].get(k) is None:
+                d["render"].pop(k, None)
         return d
 
     def content_hash(self) -> str:

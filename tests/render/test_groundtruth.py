@@ -173,6 +173,32 @@ def test_the_geometry_does_not_move_with_the_render_seed():
     assert a.varies(i, ["normals"], geometry=True)
 
 
+@pytest.mark.render
+def test_a_scene_asking_for_more_sample_groups_gets_them_at_draft():
+    """``render.min_groups = 8``: every pass in eight groups (two samples each at draft), the
+    replicates of all eight groups, and their delete-one-group estimate of the pass's mean agrees
+    with the four-group render's within both their errors."""
+    from pbrbench.quality import DRAFT
+    from pbrbench.render.groundtruth import render_ground_truth
+
+    spec = SceneSpec.model_validate(SCENE)
+    eight = spec.model_copy(update={"render": spec.render.model_copy(update={"min_groups": 8})})
+    a, b = render_ground_truth(spec, DRAFT), render_ground_truth(eight, DRAFT)
+    assert (a.groups, a.meta["groups"], a.meta["spp"]) == (4, 4, 8)
+    assert (b.groups, b.meta["groups"], b.meta["spp"]) == (8, 8, 16)
+    assert np.array_equal(a["mask"], b["mask"])           # the geometry does not depend on the groups
+    m = a["mask"] > 0.5
+
+    def mean_and_se(g):
+        v = float(g["light00.radiance"][m].mean())
+        reps = np.array([float(g.replicate(i)["light00.radiance"][m].mean()) for i in range(g.groups)])
+        return v, float(np.sqrt((g.groups - 1) / g.groups * np.sum((reps - reps.mean()) ** 2)))
+
+    (va, sa), (vb, sb) = mean_and_se(a), mean_and_se(b)
+    assert sa > 0 and sb > 0
+    assert abs(va - vb) < 4 * np.hypot(sa, sb)
+
+
 def test_shape_ids_are_read_to_float32_rounding():
     # the film holds a pixel's weighted mean of its samples' shape indices in float32: 2.9999998
     # for a pixel that sees only shape 3.  Compared exactly, such shapes fell out of object_id and

@@ -58,6 +58,9 @@ BAD = [
     ("unknown top-level key", "descripton = 'x'\n" + GOOD, ["descripton: unknown key (did you mean 'description'?)"]),
     ("min_resolution above resolution", GOOD.replace("spp = 4", "spp = 4\nmin_resolution = 32"),
      ["render", "min_resolution (32) must not exceed", "[16, 16]"]),
+    ("min_groups above spp", GOOD.replace("spp = 4", "spp = 4\nmin_groups = 8"),
+     ["render", "min_groups (8) must not exceed spp (4)", "raise spp"]),
+    ("min_groups above 16", GOOD.replace("spp = 4", "spp = 64\nmin_groups = 17"), ["render.min_groups", "16"]),
 ]
 
 
@@ -98,6 +101,25 @@ def test_min_resolution_floors_the_draft_resolution_and_an_unset_one_leaves_the_
     assert standard.resolution(b.render.resolution, b.render.min_resolution) == (256, 128)
     # a file without the key hashes as before the key existed (caches and baselines stay valid)
     assert "min_resolution" not in a.canonical()["render"]
+    assert a.content_hash() != b.content_hash()
+
+
+def test_min_groups_raises_the_sample_groups_at_every_profile_and_an_unset_one_leaves_the_hash(tmp_path):
+    from pbrbench.quality import get_quality
+
+    plain = tmp_path / "plain.toml"
+    plain.write_text(GOOD.replace("spp = 4", "spp = 72"))
+    more = tmp_path / "more.toml"
+    more.write_text(GOOD.replace("spp = 4", "spp = 72\nmin_groups = 8"))
+    (a,), (b,) = load_scene_file(plain), load_scene_file(more)
+    draft, standard = get_quality("draft"), get_quality("standard")
+    assert draft.groups_for(a.render.min_groups) == 4 and standard.groups_for(a.render.min_groups) == 4
+    assert draft.groups_for(b.render.min_groups) == 8 and standard.groups_for(b.render.min_groups) == 8
+    assert draft.groups_for(2) == 4                     # never fewer than the profile's
+    # at least two samples per group at draft: 72 / 16 rounds to 4, raised to 8 for 4 groups, 16 for 8
+    assert draft.spp(a.render.spp) == 8 and draft.spp(b.render.spp, 8) == 16
+    assert standard.spp(b.render.spp, 8) == 72          # the file's count, split eight ways
+    assert "min_groups" not in a.canonical()["render"]
     assert a.content_hash() != b.content_hash()
 
 
