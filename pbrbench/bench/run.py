@@ -250,7 +250,8 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
     from pbrbench.lock import locked_versions
 
     config = dict(cfg.recorded(), tasks=list(tasks), variant=variant, task_info=info, plugin_versions=plugins,
-                  quality_profile=quality.render_key(), environment={"lock": locked_versions()})
+                  quality_profile=quality.render_key(), environment={"lock": locked_versions()},
+                  out=str(Path(settings.out).resolve()))   # where its figures are (pbrbench report --out elsewhere copies them)
     jobs = plan(tasks, quality)          # planned (and the scene files loaded) before the run exists,
     todo = [j for j in jobs if j.key not in prior_done]  # so a bad scene file leaves no junk run
     names = needed_scenes(jobs)

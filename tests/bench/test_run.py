@@ -66,6 +66,36 @@ def test_run_stores_scores_figures_export_and_report(tmp_path):
     assert [x["value"] for x in o2.scores] == [x["value"] for x in o.scores]  # same seed: same scores
 
 
+def test_a_report_written_to_another_folder_brings_the_run_s_figures(tmp_path, capsys):
+    """``pbrbench report --out ELSEWHERE``: the figures the run wrote under its own reports
+    directory are copied beside the new report and its task page links them; with that
+    directory gone, one line says so and the report is still written."""
+    import shutil
+
+    from pbrbench.cli.main import main
+
+    o = fake_run(tmp_path)
+    store = str(tmp_path / "h.sqlite")
+    page = "task-fake.html"
+    assert "Figures:" in (tmp_path / "reports" / o.run_id / page).read_text()
+    other = tmp_path / "elsewhere"
+    assert main(["report", o.run_id, "--store", store, "--out", str(other)]) == 0
+    out = capsys.readouterr().out
+    assert "figures copied from" in out
+    new = other / o.run_id
+    assert sorted(p.relative_to(new / "figures") for p in (new / "figures").rglob("*.png")) == \
+        sorted(p.relative_to(tmp_path / "reports" / o.run_id / "figures")
+               for p in (tmp_path / "reports" / o.run_id / "figures").rglob("*.png"))
+    assert "Figures:" in (new / page).read_text()
+    # the run's own folder gone: the report still comes, without figures, and says why
+    shutil.rmtree(tmp_path / "reports")
+    third = tmp_path / "third"
+    assert main(["report", o.run_id, "--store", store, "--out", str(third)]) == 0
+    out = capsys.readouterr().out
+    assert "figures are not in" in out and "--out" in out
+    assert "Figures:" not in (third / o.run_id / page).read_text()
+
+
 def test_seed_changes_only_seed_dependent_scores(tmp_path):
     a = {(x["scene"], x["condition"], x["algorithm"], x["metric"]): x["value"] for x in fake_run(tmp_path, seed=0).scores}
     b = {(x["scene"], x["condition"], x["algorithm"], x["metric"]): x["value"] for x in fake_run(tmp_path, seed=1).scores}
