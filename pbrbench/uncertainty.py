@@ -44,6 +44,7 @@ CONFIDENCE = 0.95    # two-sided level of the intervals and of "a difference is 
 # (a discrete choice flipped): the 99.9th percentile of the statistic for G Gaussian replicates
 # (Monte Carlo, 10^6 draws each; tests/test_uncertainty_stats.py re-measures it)
 GAP_CRITICAL = {3: 0.9994, 4: 0.9783, 5: 0.9242, 6: 0.8613, 7: 0.8028, 8: 0.7557}
+SIDES_FROM = 6           # from this many replicates on, a flip leaves at least two on each side of its gap
 UNSTABLE_MIN_GAP = 0.05  # a flip moves the score by at least this fraction of its size: smaller gaps
                          # are the quantisation of a counting metric (one pixel more or less), not a flip
 
@@ -184,15 +185,23 @@ def unstable(reps) -> bool | None:
     """Whether the replicates split into two groups far apart (a discrete choice of the pipeline
     flipped between them): the largest gap between the sorted values, over their range, exceeds
     :data:`GAP_CRITICAL` (a spread a smooth score's Gaussian replicates reach once in 1000), and
-    the gap is at least :data:`UNSTABLE_MIN_GAP` of the score's magnitude.  None below 3
-    replicates (no test)."""
+    the gap is at least :data:`UNSTABLE_MIN_GAP` of the score's magnitude.  From
+    :data:`SIDES_FROM` replicates on, each side of the gap must hold at least two: one replicate
+    alone beyond it is one sample group far from the rest, which the heavy tail of Monte Carlo
+    noise (a group that caught a firefly) gives as well as a flip (eight groups of a penumbra:
+    the image-as-reflectance baseline, which has no choice to flip, was flagged in one run of
+    eight without this).  None below 3 replicates (no test)."""
     if reps is None or len(reps) < 3:
         return None
     v = sorted(float(r) for r in reps)
     rng = v[-1] - v[0]
     scale = max(abs(x) for x in v)
-    gap = max(b - a for a, b in zip(v, v[1:], strict=False))
+    gaps = [b - a for a, b in zip(v, v[1:], strict=False)]
+    gap = max(gaps)
     if rng <= 0 or gap < UNSTABLE_MIN_GAP * scale:
+        return False
+    at = gaps.index(gap)          # the gap lies between v[at] and v[at + 1]
+    if len(v) >= SIDES_FROM and min(at + 1, len(v) - at - 1) < 2:
         return False
     crit = GAP_CRITICAL.get(len(v), GAP_CRITICAL[max(GAP_CRITICAL)])
     return gap / rng > crit

@@ -218,6 +218,11 @@ def test_a_flipped_discrete_choice_is_detected_and_smooth_scores_are_not():
     assert unstable([1.0, 1.01, 1.02, 1.03]) is False
     assert unstable([0.9974, 0.9974, 0.9961, 0.9974]) is False  # one pixel of a counting metric
     assert unstable([1.0, 2.0]) is None                    # two replicates: no test
+    # eight groups (render.min_groups): one replicate alone beyond the gap is one heavy-tailed
+    # group (the image-as-reflectance baseline on a penumbra), two against six is a flip
+    firefly = [0.02459, 0.02451, 0.02469, 0.02453, 0.02458, 0.02290, 0.02452, 0.02464]
+    assert unstable(firefly) is False
+    assert unstable([1.877e-5, 1.875e-5, 1.869e-5, 1.652e-5, 1.878e-5, 1.870e-5, 1.864e-5, 1.642e-5]) is True
     # Gaussian replicates are called bimodal about once in 1000
     rng = np.random.default_rng(5)
     flags = [unstable(list(10 + rng.standard_normal(G))) for _ in range(20000)]
