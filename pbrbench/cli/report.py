@@ -46,10 +46,10 @@ def bring_figures(recorded_out, run_id: str, run_dir: Path) -> str | None:
     if dest.is_dir() or not recorded_out:
         return None
     src = Path(recorded_out) / run_id / "figures"
+    if src.resolve() == dest.resolve():     # the run's own folder: nothing to bring from elsewhere
+        return None
     if not src.is_dir():
         return (f"report: the run's figures are not in {src} (its reports directory moved or was cleaned): "
                 "the task pages have no figures; give that directory as --out to link them")
-    if src.resolve() == dest.resolve():
-        return None
     shutil.copytree(src, dest)
     return f"report: figures copied from {src}"

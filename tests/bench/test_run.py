@@ -87,6 +87,10 @@ def test_a_report_written_to_another_folder_brings_the_run_s_figures(tmp_path, c
         sorted(p.relative_to(tmp_path / "reports" / o.run_id / "figures")
                for p in (tmp_path / "reports" / o.run_id / "figures").rglob("*.png"))
     assert "Figures:" in (new / page).read_text()
+    # its own folder without figures: nothing to bring, and no line claiming the folder moved
+    shutil.rmtree(tmp_path / "reports" / o.run_id / "figures")
+    assert main(["report", o.run_id, "--store", store, "--out", str(tmp_path / "reports")]) == 0
+    assert "figures" not in capsys.readouterr().out.splitlines()[0]
     # the run's own folder gone: the report still comes, without figures, and says why
     shutil.rmtree(tmp_path / "reports")
     third = tmp_path / "third"
