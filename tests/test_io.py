@@ -48,6 +48,14 @@ def test_srgb_and_tonemap():
     assert np.all(np.diff(t.ravel().astype(int)) >= 0)
 
 
+def test_srgb_encoding_is_colour_science_s_bit_for_bit():
+    import colour
+
+    x = np.concatenate([np.linspace(0.0, 1.0, 20001), np.geomspace(1e-9, 0.01, 2001), [-0.5, 1.5, np.nan]])
+    ref = colour.cctf_encoding(np.clip(x, 0.0, 1.0), function="sRGB")
+    np.testing.assert_array_equal(srgb_encode(x), ref)     # NaN in the same place, clipping as before
+
+
 # ----------------------------------------------------------------------------- lossless PNG
 def _adam7_png(path, a):
     """An interlaced PNG written by hand (filter None), for the reader's Adam7 path."""

@@ -1,5 +1,5 @@
-"""Previews: linear images tone-mapped to 8-bit sRGB PNGs (the sRGB encoding is
-colour-science's), normals as colours, scalar maps with a colour bar (matplotlib).  Previews are
+"""Previews: linear images tone-mapped to 8-bit sRGB PNGs (the IEC 61966-2-1 encoding, equal to
+colour-science's to the last bit: a test checks it), normals as colours, scalar maps with a colour bar (matplotlib).  Previews are
 for looking at, never read back for scoring; every writer is atomic."""
 
 from __future__ import annotations
@@ -12,10 +12,15 @@ from pbrbench.io.files import atomic_path
 
 
 def srgb_encode(x: np.ndarray) -> np.ndarray:
-    """Linear [0, 1] -> sRGB-encoded [0, 1] (IEC 61966-2-1, colour-science's inverse EOTF)."""
-    import colour
+    r"""Linear [0, 1] -> sRGB-encoded [0, 1], the inverse EOTF of IEC 61966-2-1:
 
-    return np.asarray(colour.cctf_encoding(np.clip(x, 0.0, 1.0), function="sRGB"), dtype=np.float64)
+    .. math:: V = 12.92\,L \ (L \le 0.0031308), \qquad V = 1.055\,L^{1/2.4} - 0.055 \ \text{otherwise}
+
+    Written out rather than taken from colour-science (the same values, bit for bit, which a
+    test checks): ``import colour`` imports its plotting package and matplotlib, 1.0-1.4 s in
+    every process that writes a preview (each pool worker, each command-line run)."""
+    a = np.clip(np.asarray(x, dtype=np.float64), 0.0, 1.0)
+    return np.where(a <= 0.0031308, 12.92 * a, 1.055 * np.power(a, 1.0 / 2.4) - 0.055)
 
 
 def tonemap(img: np.ndarray, *, percentile: float = 99.5, exposure: float | None = None) -> np.ndarray:
