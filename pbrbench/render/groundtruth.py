@@ -295,7 +295,11 @@ class _Renderer:
         self.spp_used = G * per
         self.spp_per_pass[what] = G * n
         del scene
-        gc.collect()
+        # the young generations only: a Mitsuba scene holds no reference cycle that outlives them
+        # (the same kernels, the same peak memory and bit-identical passes with none at all),
+        # and a full collection of this process's heap cost ~12 ms a pass, 30 % of the draft
+        # library's render time with Dr.Jit's kernels cached (30.6 s against 21.8 s)
+        gc.collect(1)
         self._tick(what)
         mean, jk = loo_deviations(groups)
         return mean.astype(np.float32), jk.astype(np.float32)
@@ -387,7 +391,7 @@ class _Renderer:
         mi.render(scene, seed=OBJECT_ID_SEED, spp=1)
         obj = np.maximum(self._object_ids(scene, _film_arrays(scene)["si.I"]), 0)
         del scene
-        gc.collect()
+        gc.collect(1)
         # pure pixels: fully covered and not on a boundary between two objects (there the
         # footprint-averaged AOVs are mixtures), and the footprint-averaged index equals the
         # point-sampled one (no mixture inside the pixel); each replicate has its own coverage
