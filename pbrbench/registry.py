@@ -83,7 +83,9 @@ def _source_hash_of(module_name: str, qualname: str) -> str:
 
 
 def source_hash(fn: Callable) -> str:
-    """Short hash of the source of the module that defines ``fn`` (partials unwrapped).
+    """Short hash of the source of the module that defines ``fn`` (partials unwrapped), and of
+    the callables a partial binds (``functools.partial(with_estimated_light, method=kimmel2001)``
+    changes with ``kimmel2001``'s module as well as with its own).
 
     The whole module, not only the function, so a change to one of its private helpers changes
     the hash too; shared helpers of other modules are not covered.
@@ -91,7 +93,21 @@ def source_hash(fn: Callable) -> str:
     f = _unwrap(fn)
     module = getattr(f, "__module__", None) or type(f).__module__
     qual = getattr(f, "__qualname__", None) or type(f).__qualname__
-    return _module_source_hash(module, qual)
+    h = _module_source_hash(module, qual)
+    bound = _bound_callables(fn)
+    if not bound:   # the hash of a plain function (or a partial binding only values) as it always was
+        return h
+    return hashlib.sha256(":".join([h, *(source_hash(b) for b in bound)]).encode()).hexdigest()[:10]
+
+
+def _bound_callables(fn) -> list:
+    """The callables bound as arguments by ``fn``'s partials (outermost first; keywords by name)."""
+    out = []
+    while isinstance(fn, functools.partial):
+        out += [v for v in fn.args if callable(v)]
+        out += [fn.keywords[k] for k in sorted(fn.keywords) if callable(fn.keywords[k])]
+        fn = fn.func
+    return out
 
 
 def declared_version(fn: Callable) -> str:

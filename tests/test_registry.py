@@ -56,6 +56,23 @@ def test_version_hash_changes_when_the_source_changes(tmp_path):
     assert Algorithm("m", "t", m1.fn, version="7").full_version.startswith("7+")
 
 
+def test_a_wrapper_s_version_follows_the_method_it_binds(tmp_path):
+    # functools.partial(with_estimated_light, method=kimmel2001) ran kimmel2001's code under the
+    # wrapper's version alone: its scores changed with kimmel2001 and its version did not
+    import functools
+
+    w = _module(tmp_path, "pb_reg_wrap", "def wrap(x, *, method):\n    return method(x)\n")
+    m1 = _module(tmp_path, "pb_reg_bound1", "def fn(x):\n    return x\n")
+    m2 = _module(tmp_path, "pb_reg_bound2", "def fn(x):\n    return x + 1\n")
+    v1, v2 = (source_hash(functools.partial(w.wrap, method=m.fn)) for m in (m1, m2))
+    assert v1 != v2 and source_hash(w.wrap) not in (v1, v2)
+    assert source_hash(functools.partial(w.wrap, method=m1.fn)) == v1      # stable
+    assert source_hash(functools.partial(w.wrap, scale=2)) == source_hash(w.wrap)   # values: as before
+    reg = builtin_registry(get_tasks(["sfs"]))
+    est = reg.get("sfs", "kimmel2001+estimated_light").full_version
+    assert est != reg.get("sfs", "horn1989+estimated_light").full_version
+
+
 def test_quality_budgets_are_merged_and_entries_pickle():
     reg = builtin_registry(get_tasks(["sfs", "hdr"]))
     horn = reg.get("sfs", "horn1989")
