@@ -57,6 +57,20 @@ def normals_from_lowrank(images: np.ndarray, lights: np.ndarray, mask: np.ndarra
     return n / np.maximum(np.linalg.norm(n, axis=-1, keepdims=True), 1e-12), rank
 
 
+def mean_error_deg(n: np.ndarray, gt: np.ndarray) -> float:
+    """Mean angle in degrees between unit normals ``n`` and ``gt`` (both (P, 3))."""
+    return float(np.degrees(np.arccos(np.clip(np.einsum("pc,pc->p", n, gt), -1, 1))).mean())
+
+
+def bunny_sets(data_dir: str):
+    """``(name, images, lights, mask, normals)`` of the two bunny sets with shadows
+    (``scripts/rps_bunny.py``'s loader)."""
+    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+    from rps_bunny import load
+
+    return [(name, *load(data_dir, name)) for name in ("bunny_lambert", "bunny_specular")]
+
+
 def normals_from_completion(images, lights, mask, factor: float):
     """(P, 3) unit normals over ``mask`` from the low-rank matrix of Wu et al.'s design (entries
     below ``wu2010``'s shadow threshold missing) at ``lambda = factor / sqrt(max(K, N))``, and
@@ -74,17 +88,7 @@ def normals_from_completion(images, lights, mask, factor: float):
 def lambda_scan(data_dir, stacks: bool, factors) -> None:
     from pbrbench.infer.photometric_stereo import METHODS
 
-    def err(n, gt):
-        return float(np.degrees(np.arccos(np.clip(np.einsum("pc,pc->p", n, gt), -1, 1))).mean())
-
-    cases = []
-    if data_dir:
-        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-        from rps_bunny import load
-
-        for name in ("bunny_lambert", "bunny_specular"):
-            imgs, lights, mask, gt = load(data_dir, name)
-            cases.append((name, imgs, lights, mask, gt))
+    cases = bunny_sets(data_dir) if data_dir else []
     if stacks:
         from pbrbench.perf.photometric_stereo import robust_stack
 
@@ -96,29 +100,22 @@ def lambda_scan(data_dir, stacks: bool, factors) -> None:
     print("case                      wu2010  " + "  ".join(f"x{f:<4g} (rank)" for f in factors))
     for name, imgs, lights, mask, gt in cases:
         r = METHODS["wu2010"](imgs, lights, mask=mask)
-        row = [f"{err(r.normals[mask], gt[mask]):6.2f}"]
+        row = [f"{mean_error_deg(r.normals[mask], gt[mask]):6.2f}"]
         for f in factors:
             n, rank = normals_from_completion(imgs, lights, mask, f)
-            row.append(f"{err(n, gt[mask]):6.2f} ({rank:2d})")
+            row.append(f"{mean_error_deg(n, gt[mask]):6.2f} ({rank:2d})")
         print(f"{name:24s} " + "  ".join(row), flush=True)
 
 
 def bunny(data_dir: str) -> None:
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-    from rps_bunny import load
-
     from pbrbench.infer.photometric_stereo import METHODS
 
-    def err(n, gt, m):
-        return float(np.degrees(np.arccos(np.clip(np.einsum("pc,pc->p", n[m], gt[m]), -1, 1))).mean())
-
-    for name in ("bunny_lambert", "bunny_specular"):
-        imgs, lights, mask, gt = load(data_dir, name)
+    for name, imgs, lights, mask, gt in bunny_sets(data_dir):
         n, rank = normals_from_lowrank(imgs, lights, mask)
-        row = [f"shadows as data {err(n, gt, mask):6.3f} (rank {rank})"]
+        row = [f"shadows as data {mean_error_deg(n[mask], gt[mask]):6.3f} (rank {rank})"]
         for a in ("woodham1980", "wu2010"):
             r = METHODS[a](imgs, lights, mask=mask)
-            row.append(f"{a} {err(np.where(r.valid[..., None], r.normals, 0.0), gt, mask):6.3f}")
+            row.append(f"{a} {mean_error_deg(np.where(r.valid[..., None], r.normals, 0.0)[mask], gt[mask]):6.3f}")
         print(f"{name:24s} " + "  ".join(row), flush=True)
 
 

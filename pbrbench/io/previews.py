@@ -1,6 +1,7 @@
 """Previews: linear images tone-mapped to 8-bit sRGB PNGs (the IEC 61966-2-1 encoding, equal to
-colour-science's to the last bit: a test checks it), normals as colours, scalar maps with a colour bar (matplotlib).  Previews are
-for looking at, never read back for scoring; every writer is atomic."""
+colour-science's to the last bit: a test checks it), normals as colours, scalar maps with a
+colour bar (matplotlib).  Previews are for looking at, never read back for scoring; every
+writer is atomic."""
 
 from __future__ import annotations
 

@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from pbrbench.infer.sfs import shape_from_shading, shape_from_shading_kimmel2001
+from pbrbench.infer.sfs.kimmel2001 import _singular_seeds
 from pbrbench.metrics.sfs import normal_angle
 from tests.infer.sfs._scenes import FRONTAL, OBLIQUE, flat_angle, scene
 
@@ -59,16 +60,12 @@ def test_fast_marching_frontal_vase_seeds_only_the_global_maximum():
     assert r.info["seeds"] == "singular" and r.info["singular_components"] > 1
     assert normal_angle(r.normals, s.normals, s.mask) < 3.0
     assert normal_angle(r.normals, s.normals, s.mask) < 0.1 * flat_angle(s)
-    from pbrbench.infer.sfs.kimmel2001 import _singular_seeds
-
     assert r.info["n_seeds"] < int(_singular_seeds(img / 0.8, s.mask, 1e-3).sum())   # the bulge alone
 
 
 def test_fast_marching_frontal_without_a_contour_seeds_every_singular_point():
     # a surface cut by the frame shows no silhouette to choose a component by: every singular
     # point is seeded (the convex choice), not one picked by the frame's edge
-    from pbrbench.infer.sfs.kimmel2001 import _singular_seeds
-
     s, img, h = scene("random_smooth", 96, FRONTAL)
     r = shape_from_shading(img, FRONTAL, method="kimmel2001", albedo=0.8, mask=s.mask, pixel_size=h)
     n_sing = int(_singular_seeds(img / 0.8, s.mask, 1e-3).sum())
