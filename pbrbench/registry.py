@@ -82,10 +82,12 @@ def _source_hash_of(module_name: str, qualname: str) -> str:
     return hashlib.sha256(src.encode()).hexdigest()[:10]
 
 
-def source_hash(fn: Callable) -> str:
-    """Short hash of the source of the module that defines ``fn`` (partials unwrapped), and of
-    the callables a partial binds (``functools.partial(with_estimated_light, method=kimmel2001)``
-    changes with ``kimmel2001``'s module as well as with its own).
+def source_hash(fn: Callable, _seen: frozenset = frozenset()) -> str:
+    """Short hash of the source of the module that defines ``fn`` (partials unwrapped), of the
+    callables a partial binds (``functools.partial(with_estimated_light, method=kimmel2001)``
+    changes with ``kimmel2001``'s module as well as with its own), and of the algorithms its module
+    declares it calls (``USES``, ``"module:function"`` names: inverse rendering that starts from
+    ``nayar1991`` changes with ``nayar1991``).
 
     The whole module, not only the function, so a change to one of its private helpers changes
     the hash too; shared helpers of other modules are not covered.
@@ -94,10 +96,23 @@ def source_hash(fn: Callable) -> str:
     module = getattr(f, "__module__", None) or type(f).__module__
     qual = getattr(f, "__qualname__", None) or type(f).__qualname__
     h = _module_source_hash(module, qual)
-    bound = _bound_callables(fn)
-    if not bound:   # the hash of a plain function (or a partial binding only values) as it always was
+    seen = _seen | {module}
+    deps = _bound_callables(fn) + [u for u in _uses(module) if getattr(u, "__module__", None) not in seen]
+    if not deps:   # the hash of a plain function (or a partial binding only values) as it always was
         return h
-    return hashlib.sha256(":".join([h, *(source_hash(b) for b in bound)]).encode()).hexdigest()[:10]
+    return hashlib.sha256(":".join([h, *(source_hash(d, seen) for d in deps)]).encode()).hexdigest()[:10]
+
+
+def _uses(module_name: str) -> list:
+    """The callables named by the module's ``USES`` (``"package.module:function"``), imported."""
+    import importlib
+
+    names = getattr(sys.modules.get(module_name), "USES", ()) or ()
+    out = []
+    for name in names:
+        mod, _, fn = str(name).partition(":")
+        out.append(getattr(importlib.import_module(mod), fn))
+    return out
 
 
 def _bound_callables(fn) -> list:

@@ -73,6 +73,25 @@ def test_a_wrapper_s_version_follows_the_method_it_binds(tmp_path):
     assert est != reg.get("sfs", "horn1989+estimated_light").full_version
 
 
+def test_a_method_s_version_follows_the_methods_its_module_uses(tmp_path, monkeypatch):
+    # inverse rendering starts from nayar1991's estimate: its scores change with nayar1991
+    _module(tmp_path, "pb_reg_dep1", "def fn(x):\n    return x\n")
+    _module(tmp_path, "pb_reg_dep2", "def fn(x):\n    return x + 1\n")
+    user = _module(tmp_path, "pb_reg_user", "def solve(x):\n    return x\n")
+    alone = source_hash(user.solve)
+    hashes = []
+    for dep in ("pb_reg_dep1", "pb_reg_dep2"):      # the same source of its own, another dependency
+        monkeypatch.setattr(user, "USES", (f"{dep}:fn",), raising=False)
+        hashes.append(source_hash(user.solve))
+        assert source_hash(user.solve) == hashes[-1]    # stable
+    assert hashes[0] != hashes[1] and alone not in hashes
+    monkeypatch.setattr(user, "USES", ("pb_reg_user:solve",))   # a module naming itself is hashed once
+    assert source_hash(user.solve) == alone
+    from pbrbench.inverse import nicolet2021
+
+    assert {f"photometric_stereo_{s}" for s in nicolet2021.STARTS} == {u.split(":")[1] for u in nicolet2021.USES}
+
+
 def test_quality_budgets_are_merged_and_entries_pickle():
     reg = builtin_registry(get_tasks(["sfs", "hdr"]))
     horn = reg.get("sfs", "horn1989")

@@ -128,6 +128,9 @@ VERSION = "5"  # under direct light each pixel's normal is refitted on the measu
 # fully (version 4 returned the height field's normals; version 4 gave the start back where the fit matched the
 # images worse than it beyond the renders' noise, keep_start = 2 standard errors; version 3 always returned the fit)
 STARTS = ("woodham1980", "nayar1991")
+# the methods it starts from and refits with: their versions are part of this one's (pbrbench.registry.source_hash)
+USES = ("pbrbench.infer.photometric_stereo.woodham1980:photometric_stereo_woodham1980",
+        "pbrbench.infer.photometric_stereo.nayar1991:photometric_stereo_nayar1991")
 ADJOINTS = ("direct", "full")
 LIGHT_MODELS = ("scene", "vectors")
 CLAMP = 20.0           # per-vertex gradient clamp, in medians of |dE/dz|
