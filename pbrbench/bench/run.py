@@ -83,6 +83,8 @@ class RunOutcome:
     comparison: object | None = None
     render_seconds: float = 0.0   # wall time until every scene is rendered
     job_seconds: float = 0.0      # wall time from then until the last job (the pool runs jobs during the renders too)
+    render_cpu_seconds: float = 0.0   # CPU time of this run's renders (every thread; cached scenes: none)
+    job_cpu_seconds: float = 0.0      # CPU time of this run's jobs, summed over their processes (cached jobs: none)
     wall_seconds: float = 0.0
     renders: int = 0
     n_cached: int = 0
@@ -294,7 +296,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
             fps[j.key] = fp
             hit = jcache.get(fp)
             if hit is not None:
-                cached_results.append(hit)
+                cached_results.append({**hit, "from_job_cache": True})
             else:
                 args.append((tasks[j.task], j, {n: specs[n] for n in (j.scene, *j.extra_scenes)}, source, cfg.seed,
                              slug(j.key), algs[j.task], quality, cfg.uncertainty))
@@ -324,7 +326,9 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
             if res["files"]:
                 _write_files(run_dir, res["files"])
             store.add_job_result(run_id, res["key"], res["task"], res["scores"], seconds=res["seconds"],
-                                 error=res["error"])
+                                 error=res["error"], cpu_seconds=res.get("cpu_seconds"))
+            if not res.get("from_job_cache"):
+                outcome.job_cpu_seconds += float(res.get("cpu_seconds") or 0.0)
             if res["error"]:
                 outcome.errors[res["key"]] = res["error"]
                 last = [ln for ln in res["error"].strip().splitlines() if ln.strip()][-1:]
@@ -341,6 +345,7 @@ def run_benchmark(cfg: RunConfig, *, settings, tasks: dict | None = None, source
                     for name, meta, cached in rex.imap(_render_task, [(source, specs[n]) for n in missing]):
                         metas[name] = (meta, cached)
                         outcome.renders += int(not cached)
+                        outcome.render_cpu_seconds += 0.0 if cached else float(meta.get("cpu_s") or 0.0)
                         bar.update(1, name)
                         if pipeline:
                             pending_scenes.discard(name)

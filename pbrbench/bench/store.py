@@ -145,6 +145,10 @@ ALTER TABLE ground_truths ADD COLUMN spp_file INTEGER
     (8, "a seed-dependent score's value is the mean over its seeds (1; NULL: the job's own seed's draw)", """
 ALTER TABLE scores ADD COLUMN noise_mean INTEGER
 """),
+    (9, "CPU seconds beside wall seconds, of each job (its process, all threads) and of each render", """
+ALTER TABLE jobs ADD COLUMN cpu_seconds REAL;
+ALTER TABLE ground_truths ADD COLUMN render_cpu_seconds REAL
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -509,8 +513,9 @@ class Store:
 
     # ------------------------------------------------------------------ scores and jobs
     def add_job_result(self, run_id: str, job_key: str, task: str, scores: Iterable, *,
-                       seconds: float | None = None, error: str | None = None):
-        """Store a finished job's scores and mark the job complete, in one transaction."""
+                       seconds: float | None = None, error: str | None = None, cpu_seconds: float | None = None):
+        """Store a finished job's scores and mark the job complete, in one transaction; ``seconds``
+        its wall time, ``cpu_seconds`` the CPU time of its process (every thread)."""
         rows = []
         for s in scores:
             d = s if isinstance(s, dict) else s.as_dict()
@@ -524,8 +529,8 @@ class Store:
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
-            c.execute("INSERT OR REPLACE INTO jobs (run, job, task, seconds, finished, error) VALUES (?, ?, ?, ?, ?, ?)",
-                      (run_id, job_key, task, seconds, _now(), error))
+            c.execute("INSERT OR REPLACE INTO jobs (run, job, task, seconds, finished, error, cpu_seconds) "
+                      "VALUES (?, ?, ?, ?, ?, ?, ?)", (run_id, job_key, task, seconds, _now(), error, _num(cpu_seconds)))
 
     def done_jobs(self, run_id: str) -> set[str]:
         """Keys of the jobs of ``run_id`` that completed (without error)."""
@@ -565,11 +570,12 @@ class Store:
         per pixel its scene file asks for (what the standard quality renders at least)."""
         with self.transaction() as c:
             c.execute("INSERT OR REPLACE INTO ground_truths (run, scene, scene_hash, quality, spp, resolution, noise, "
-                      "render_seconds, from_cache, tags, spp_file) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                      "render_seconds, from_cache, tags, spp_file, render_cpu_seconds) "
+                      "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
                       (run_id, scene, meta.get("scene_hash"), meta.get("quality"), meta.get("spp"),
                        json.dumps(meta.get("resolution")), json.dumps(meta.get("noise", {})),
                        meta.get("wall_s"), int(bool(from_cache)), json.dumps(list(meta.get("tags", []))),
-                       None if spp_file is None else int(spp_file)))
+                       None if spp_file is None else int(spp_file), _num(meta.get("cpu_s"))))
 
     def ground_truths(self, run_id: str) -> list[dict]:
         out = []

@@ -133,6 +133,10 @@ def run(args) -> int:
     print(f"run {o.run_id}: {o.n_jobs} jobs ({o.n_skipped} already done), {len(o.scores)} scores, "
           f"{o.renders} render(s) {o.render_seconds:.1f}s, jobs {o.job_seconds:.1f}s, total {o.wall_seconds:.1f}s, "
           f"peak memory {peak_memory_mib():.0f} MiB")
+    if o.renders or o.job_cpu_seconds:
+        ratio = f" ({o.job_cpu_seconds / o.render_cpu_seconds:.2f}x)" if o.render_cpu_seconds > 0 else ""
+        print(f"  CPU time: renders {o.render_cpu_seconds:.1f}s, jobs {o.job_cpu_seconds:.1f}s{ratio} "
+              "(every thread of each process; wall times beside other work run long)")
     for line in summary_lines(o):
         print(line)
     for line in failure_lines(o.scores):

@@ -60,10 +60,14 @@ def test_run_stores_scores_figures_export_and_report(tmp_path):
         versions = run["config"]["task_info"]["fake"]["algorithm_versions"]
         assert set(versions) == {"good", "baseline:zero"} and all("+" in v for v in versions.values())
         assert {g["scene"] for g in s.ground_truths(o.run_id)} == {"scene_a", "scene_b"}
+        cpu = [r[0] for r in s.conn.execute("SELECT cpu_seconds FROM jobs WHERE run = ?", (o.run_id,))]
+        assert len(cpu) == 4 and all(c is not None and c >= 0 for c in cpu)
+        assert o.job_cpu_seconds == pytest.approx(sum(cpu))
     # second run: ground truths come from the (fake) cache
     o2 = fake_run(tmp_path)
     assert o2.renders == 0
     assert [x["value"] for x in o2.scores] == [x["value"] for x in o.scores]  # same seed: same scores
+    assert o2.n_cached == 4 and o2.job_cpu_seconds == 0.0 and o2.render_cpu_seconds == 0.0   # nothing ran again
 
 
 def test_a_report_written_to_another_folder_brings_the_run_s_figures(tmp_path, capsys):

@@ -93,6 +93,12 @@ def test_job_result_replaces_and_resume_bookkeeping(tmp_path):
         assert [x["value"] for x in s.scores(rid)] == [2.0]
         assert s.done_jobs(rid) == {"k1"}
         assert s.job_errors(rid) == {"k2": "boom"}
+        s.add_job_result(rid, "k3", "t", [score(value=3.0)], seconds=2.0, cpu_seconds=3.5)   # two threads
+        row = s.conn.execute("SELECT seconds, cpu_seconds FROM jobs WHERE job = 'k3'").fetchone()
+        assert tuple(row) == (2.0, 3.5)
+        s.add_ground_truth(rid, "scene", {"wall_s": 1.0, "cpu_s": 1.8}, from_cache=False)
+        row = s.conn.execute("SELECT render_seconds, render_cpu_seconds FROM ground_truths").fetchone()
+        assert tuple(row) == (1.0, 1.8)
 
 
 def test_resolve_run_references(tmp_path):
