@@ -22,11 +22,6 @@ import argparse
 import numpy as np
 
 
-def _angle(a, b, m) -> float:
-    x, y = a[m], b[m]
-    return float(np.degrees(np.arctan2(np.linalg.norm(np.cross(x, y), axis=-1), np.einsum("ij,ij->i", x, y))).mean())
-
-
 def main(argv=None) -> None:
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.infer.photometric_stereo import nayar1991 as ny
@@ -77,7 +72,7 @@ def main(argv=None) -> None:
         dist, best = [], 0
         for t, c in enumerate(r.changes):
             best = t if c <= r.changes[best] else best
-            dist.append(_angle(states[t][0], states[best][0], states[t][1] & states[best][1]))
+            dist.append(change(states[t][0], states[best][0], states[t][1] & states[best][1]))
         we = normal_scores(w.normals, truth, domain, w.valid)[0]["normal_mean_deg"]
         print(f"{item}: woodham1980 {we:.2f} deg, refuted {r.refuted}")
         for label, row in (("change", r.changes), ("error", errs), ("from settled", dist)):
