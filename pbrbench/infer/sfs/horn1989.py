@@ -124,12 +124,13 @@ def _boundary_pixels(E, s, m, boundary, theta_max):
 
 
 def _nb_sum(a, ex, ey):
-    """Sum of ``a`` over each pixel's 4-neighbours joined by an in-mask edge, and their count."""
-    s = np.zeros_like(a)
-    s[:, :-1] += ex * a[:, 1:]
-    s[:, 1:] += ex * a[:, :-1]
-    s[:-1, :] += ey * a[1:, :]
-    s[1:, :] += ey * a[:-1, :]
+    """Sum of ``a`` (..., H, W) over each pixel's 4-neighbours joined by an in-mask edge."""
+    s = np.empty_like(a)
+    np.multiply(ex, a[..., :, 1:], out=s[..., :, :-1])   # the first term written, not added to zeros
+    s[..., :, -1] = 0.0
+    s[..., :, 1:] += ex * a[..., :, :-1]
+    s[..., :-1, :] += ey * a[..., 1:, :]
+    s[..., 1:, :] += ey * a[..., :-1, :]
     return s
 
 
@@ -200,9 +201,22 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
     sweeps = 0
     delta = np.inf
     converged = False
+    # (p, q) live in one (2, H, W) array, so each operation of the update below serves both (the same
+    # arithmetic element by element, and the same order: bit-identical numbers, half the NumPy calls
+    # on the small grids of the pyramid, where a call's overhead outweighs its work)
+    PQ = np.stack([P, Q])
+    P, Q = PQ[0], PQ[1]
+    CXY = np.zeros_like(PQ)
+    cx, cy = CXY[0], CXY[1]
+    hnxy = np.stack([0.5 * nx, 0.5 * ny])
+    E_dark = np.where(shadow, 0.0, E)
+    RES = np.empty_like(PQ)
+    ASW = np.empty_like(PQ)
     for k, lam_k in enumerate(lam_list):
         last = k == len(lam_list) - 1
         budget = max_iter - sweeps if last else per_stage
+        lam_nn = lam_k * nn
+        mu_nx, mu_ny = 0.25 * mu * nx, 0.25 * mu * ny
         for _ in range(max(1, budget)):
             sweeps += 1
             dsum = 0.0
@@ -210,36 +224,33 @@ def _horn(E, s, m, *, max_iter, tol, lam, lam_min, mu, boundary, theta_max, n_st
             # half-sweep leaves unchanged: computed once per sweep, they are the same numbers
             r, rp, rq = _reflectance(P, Q, s)
             pos = r > 0
-            res = np.where(pos, E - r, np.where(shadow, 0.0, E))
+            res = np.where(pos, E - r, E_dark)
             rp *= pos
             rq *= pos
-            res_p, res_q = res * rp, res * rq
-            a11 = rp * rp + lam_k * nn + 0.25 * mu * nx
-            a22 = rq * rq + lam_k * nn + 0.25 * mu * ny
+            np.multiply(res, rp, out=RES[0])
+            np.multiply(res, rq, out=RES[1])
+            a11 = rp * rp + lam_nn + mu_nx
+            a22 = rq * rq + lam_nn + mu_ny
             a12 = rp * rq
             det = a11 * a22 - a12 * a12
             det = np.where(det > 1e-12, det, 1e-12)
+            ASW[0], ASW[1] = a22, a11
             dzx, dzy = Z[:, 1:] - Z[:, :-1], Z[:-1, :] - Z[1:, :]     # z moves only after both colours
             for col in colours:
                 # integrability targets seen from each pixel: c = z_b - z_a - p_b / 2 on its x-edges
-                cx = np.zeros_like(E)
+                CXY.fill(0.0)
                 cx[:, :-1] += ex * (dzx - 0.5 * P[:, 1:])
                 cx[:, 1:] += ex * (dzx - 0.5 * P[:, :-1])
                 # y-edges a (row i) -> b (row i+1): z_b - z_a + (q_a + q_b)/2; target for q_a is
                 # -(z_b - z_a) - q_b / 2
-                cy = np.zeros_like(E)
                 cy[:-1, :] += ey * (dzy - 0.5 * Q[1:, :])
                 cy[1:, :] += ey * (dzy - 0.5 * Q[:-1, :])
                 # quadratic model per pixel in (dp, dq): [[a11, a12], [a12, a22]] d = [b1, b2]
-                b1 = (res_p + lam_k * (_nb_sum(P, ex, ey) - nn * P) + 0.5 * mu * (cx - 0.5 * nx * P))
-                b2 = (res_q + lam_k * (_nb_sum(Q, ex, ey) - nn * Q) + 0.5 * mu * (cy - 0.5 * ny * Q))
-                dp = (a22 * b1 - a12 * b2) / det
-                dq = (a11 * b2 - a12 * b1) / det
-                dp = np.where(col, omega * dp, 0.0)
-                dq = np.where(col, omega * dq, 0.0)
-                P += dp
-                Q += dq
-                upd[box] = dp * dp + dq * dq
+                b = RES + lam_k * (_nb_sum(PQ, ex, ey) - nn * PQ) + 0.5 * mu * (CXY - hnxy * PQ)
+                d = (ASW * b - a12 * b[::-1]) / det
+                d = np.where(col, omega * d, 0.0)
+                PQ += d
+                upd[box] = d[0] * d[0] + d[1] * d[1]
                 dsum += float(np.sum(upd))
             # z: Gauss-Seidel on the Poisson equation with targets gx = (p_a + p_b)/2, gy = -(q_a + q_b)/2
             gx = ex * 0.5 * (P[:, :-1] + P[:, 1:])
