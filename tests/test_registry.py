@@ -92,6 +92,26 @@ def test_a_method_s_version_follows_the_methods_its_module_uses(tmp_path, monkey
     assert {f"photometric_stereo_{s}" for s in nicolet2021.STARTS} == {u.split(":")[1] for u in nicolet2021.USES}
 
 
+
+def test_every_method_that_imports_another_method_s_module_names_it_in_uses():
+    # zheng_chellappa1991 hands its estimate to horn1989: a change to horn1989 changes its scores,
+    # so its version must change too (before USES it did not)
+    import ast
+    import importlib
+    import inspect
+
+    entries = list(builtin_registry(get_tasks()))
+    modules = {e.fn.__module__ if hasattr(e.fn, "__module__") else "" for e in entries}
+    modules = {m for m in modules if m.startswith("pbrbench.infer.") or m.startswith("pbrbench.inverse.")}
+    assert {"pbrbench.infer.sfs.zheng_chellappa1991", "pbrbench.infer.sfs.horn1989"} <= modules
+    missing = []
+    for name in sorted(modules):
+        mod = importlib.import_module(name)
+        used = {u.partition(":")[0] for u in getattr(mod, "USES", ())}
+        for node in ast.walk(ast.parse(inspect.getsource(mod))):
+            if isinstance(node, ast.ImportFrom) and node.module in modules - {name} and node.module not in used:
+                missing.append(f"{name} imports {node.module}")
+    assert not missing, missing
 def test_quality_budgets_are_merged_and_entries_pickle():
     reg = builtin_registry(get_tasks(["sfs", "hdr"]))
     horn = reg.get("sfs", "horn1989")
