@@ -103,6 +103,13 @@ def source_hash(fn: Callable, _seen: frozenset = frozenset()) -> str:
     return hashlib.sha256(":".join([h, *(source_hash(d, seen) for d in deps)]).encode()).hexdigest()[:10]
 
 
+def pipeline_hash(fn: Callable, *steps: Callable) -> str:
+    """The source hash of ``fn`` joined with those of the ``steps`` a task applies to its output
+    (the HDR task merges every calibration's response with a merge method): the fingerprint of a
+    built-in entry whose scores depend on those steps' code as well as its own."""
+    return hashlib.sha256(":".join([source_hash(fn), *(source_hash(s) for s in steps)]).encode()).hexdigest()[:10]
+
+
 def _uses(module_name: str) -> list:
     """The callables named by the module's ``USES`` (``"package.module:function"``), imported."""
     import importlib

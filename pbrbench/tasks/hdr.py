@@ -54,12 +54,14 @@ the guesses made for unmeasured pixels, and the true-response floor can lose to 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from pbrbench.camera import Camera, bracket_exposure_times
 from pbrbench.checks import method_options
 from pbrbench.metrics.hdr import hdr_scores, response_rmse
-from pbrbench.registry import Algorithm
+from pbrbench.registry import Algorithm, pipeline_hash
 from pbrbench.tasks.base import Job, JobResult, Prediction, Task, parse_condition
 from pbrbench.tasks.common.figures import display, display_map, profile_plot
 from pbrbench.tasks.common.inputs import grey, job_rng
@@ -261,7 +263,11 @@ class HDRTask(Task):
                 for n, fn in MERGE_METHODS.items()]
         out += [Algorithm("baseline:ignore_response", self.name, ignore_response, kind="baseline"),
                 Algorithm("floor:true_response", self.name, true_response, kind="floor")]
-        return out
+        # the task merges every response with a merge of the table: that merge's code is part of the
+        # version of each entry scored through it (a change to the default merge changes every calibration's
+        # radiance scores); the merges alone carry their own
+        return [a if a.interface == "merge" else
+                replace(a, fingerprint=pipeline_hash(a.fn, MERGE_METHODS[merge_of(a.name)])) for a in out]
 
     # --------------------------------------------------- export / evaluate (pbrbench.bench.external)
     input_names = ("images", "exposure_times")
@@ -347,7 +353,7 @@ class HDRTask(Task):
         gt = gts[job.scene]
         rad, mask, br, domain, coverage, images = self._bracket(job, gt, seed)
         times = br.exposure_times
-        book = ScoreBook(job, scene_hash(gt), algorithms)
+        book = ScoreBook(job, scene_hash(gt), algorithms + merges)   # the merges' versions too
         res = JobResult(job)
         res.images["linear:truth (radiance)"] = display(rad)
         k_mid = len(times) // 2

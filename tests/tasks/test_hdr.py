@@ -96,3 +96,24 @@ def test_the_bracket_follows_the_scene_not_the_render_noise():
     assert visible_emitter_radiance(spec, base) is None and visible_emitter_radiance(None, base) is None
     with pytest.raises(ValueError, match="bright"):
         camera_setup("global+noise0", base, -1.0)
+
+
+def test_every_hdr_score_records_a_version_that_follows_the_merge_it_went_through(monkeypatch):
+    # the merges alone recorded no version, and a calibration's radiance scores (merged by the task)
+    # did not change version when its merge did
+    from pbrbench import registry
+    from pbrbench.tasks.hdr import TASK, default_merge
+
+    res = run_task(TASK, Job("hdr", "hdr_scene", "global+noise0"), {"hdr_scene": hdr_gt()})
+    algs = {s.algorithm for s in res.scores}
+    assert {"merge:debevec1997", f"merge:{default_merge()}", "debevec1997+merge:debevec1997"} <= algs
+    assert all(s.algorithm_version for s in res.scores), sorted({s.algorithm for s in res.scores if not s.algorithm_version})
+    before = {a.name: a.full_version for a in TASK.builtin_algorithms()}
+    real = registry.source_hash
+    # another source for the debevec1997 merge only (its function's module), the calibrations unchanged
+    monkeypatch.setattr(registry, "source_hash", lambda fn, *a: "edited" if getattr(fn, "__module__", "") ==
+                        "pbrbench.infer.hdr.merge.debevec1997" else real(fn, *a))
+    after = {a.name: a.full_version for a in TASK.builtin_algorithms()}
+    moved = {n for n in before if before[n] != after[n]}
+    assert {"merge:debevec1997", "debevec1997+merge:debevec1997", "robertson2003+merge:debevec1997"} <= moved
+    assert not {"debevec1997", "robertson2003", f"merge:{default_merge()}"} & moved
