@@ -69,38 +69,113 @@ def _module_source_hash(module_name: str, qualname: str) -> str:
     return _SOURCE_HASHES.compute((module_name, qualname), lambda: _source_hash_of(module_name, qualname))
 
 
-def _source_hash_of(module_name: str, qualname: str) -> str:
+# the packages whose modules are the algorithms' code: a helper module of these that an algorithm's
+# module imports (photometric stereo's shared solvers, the Poisson integrator) is part of its version
+HELPER_PACKAGES = ("pbrbench.infer", "pbrbench.inverse", "pbrbench.radiosity")
+NOT_CODE = ("pbrbench.infer._docstring",)   # the shared docstring fragments: no number depends on them
+
+
+def _module_source(module_name: str) -> str | None:
+    """The source of ``module_name`` (imported if it is a helper module not imported yet), or None."""
     mod = sys.modules.get(module_name)
-    src = None
-    if mod is not None:
+    if mod is None and _in_helpers(module_name):
+        import importlib
+
         try:
-            src = inspect.getsource(mod)
-        except (OSError, TypeError):
-            src = None
+            mod = importlib.import_module(module_name)
+        except ImportError:
+            return None
+    if mod is None:
+        return None
+    try:
+        return inspect.getsource(mod)
+    except (OSError, TypeError):
+        return None
+
+
+def _in_helpers(name: str) -> bool:
+    return name not in NOT_CODE and any(name == p or name.startswith(p + ".") for p in HELPER_PACKAGES)
+
+
+def _imported_module(module: str, name: str) -> str:
+    """The module that defines what ``from module import name`` binds (``module`` itself for a
+    constant, a package's submodule for a function it re-exports)."""
+    import importlib
+
+    try:
+        obj = getattr(importlib.import_module(module), name)
+    except AttributeError:   # a submodule its package does not import itself (``from pkg import sub``)
+        try:
+            return importlib.import_module(f"{module}.{name}").__name__
+        except ImportError:
+            return module
+    except ImportError:
+        return module
+    if inspect.ismodule(obj):
+        return obj.__name__
+    owner = getattr(obj, "__module__", None) if (inspect.isfunction(obj) or inspect.isclass(obj)) else None
+    return owner if isinstance(owner, str) and _in_helpers(owner) else module
+
+
+def helper_modules(module_name: str) -> list[str]:
+    """The modules of :data:`HELPER_PACKAGES` that ``module_name``'s imports reach, directly or
+    through each other (``module_name`` left out), sorted: the code an algorithm runs beyond its
+    own module."""
+    import ast
+
+    seen: set[str] = set()
+    todo = [module_name]
+    while todo:
+        src = _module_source(todo.pop())
+        if src is None:
+            continue
+        for node in ast.walk(ast.parse(src)):
+            targets = []
+            if isinstance(node, ast.ImportFrom) and not node.level and node.module and _in_helpers(node.module):
+                targets = [_imported_module(node.module, a.name) for a in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names if _in_helpers(a.name)]
+            for t in targets:
+                if t != module_name and t not in seen:
+                    seen.add(t)
+                    todo.append(t)
+    return sorted(seen)
+
+
+def _source_hash_of(module_name: str, qualname: str) -> str:
+    src = _module_source(module_name)
     if src is None:
         src = f"{module_name}.{qualname}"
-    return hashlib.sha256(src.encode()).hexdigest()[:10]
+    h = hashlib.sha256(src.encode()).hexdigest()[:10]
+    # an algorithm module's helpers (a task module's baselines and wrappers are hashed by their own
+    # module, and a wrapper by the methods it binds)
+    helpers = helper_modules(module_name) if _in_helpers(module_name) and _module_source(module_name) else []
+    if not helpers:    # a module that imports no helper: the hash of its source alone, as it always was
+        return h
+    parts = [h] + [f"{m}={hashlib.sha256((_module_source(m) or m).encode()).hexdigest()[:10]}" for m in helpers]
+    return hashlib.sha256(":".join(parts).encode()).hexdigest()[:10]
 
 
-def source_hash(fn: Callable, _seen: frozenset = frozenset()) -> str:
-    """Short hash of the source of the module that defines ``fn`` (partials unwrapped), of the
+def source_hash(fn: Callable) -> str:
+    """Short hash of the source of the module that defines ``fn`` (partials unwrapped) and of the
     callables a partial binds (``functools.partial(with_estimated_light, method=kimmel2001)``
-    changes with ``kimmel2001``'s module as well as with its own), and of the algorithms its module
-    declares it calls (``USES``, ``"module:function"`` names: inverse rendering that starts from
-    ``nayar1991`` changes with ``nayar1991``).
+    changes with ``kimmel2001``'s module as well as with its own).
 
     The whole module, not only the function, so a change to one of its private helpers changes
-    the hash too; shared helpers of other modules are not covered.
+    the hash too; and for a module of :data:`HELPER_PACKAGES`, every module of those packages its
+    imports reach (:func:`helper_modules`: ``photometric_stereo._common``'s batched solvers, the
+    Poisson integrator, and another method it calls: zheng_chellappa1991's horn1989, inverse
+    rendering's woodham1980 and nayar1991 starts), so a change to code a method runs changes its
+    version.
     """
     f = _unwrap(fn)
     module = getattr(f, "__module__", None) or type(f).__module__
     qual = getattr(f, "__qualname__", None) or type(f).__qualname__
     h = _module_source_hash(module, qual)
-    seen = _seen | {module}
-    deps = _bound_callables(fn) + [u for u in _uses(module) if getattr(u, "__module__", None) not in seen]
+    deps = _bound_callables(fn)
     if not deps:   # the hash of a plain function (or a partial binding only values) as it always was
         return h
-    return hashlib.sha256(":".join([h, *(source_hash(d, seen) for d in deps)]).encode()).hexdigest()[:10]
+    return hashlib.sha256(":".join([h, *(source_hash(d) for d in deps)]).encode()).hexdigest()[:10]
 
 
 def pipeline_hash(fn: Callable, *steps: Callable) -> str:
@@ -108,18 +183,6 @@ def pipeline_hash(fn: Callable, *steps: Callable) -> str:
     (the HDR task merges every calibration's response with a merge method): the fingerprint of a
     built-in entry whose scores depend on those steps' code as well as its own."""
     return hashlib.sha256(":".join([source_hash(fn), *(source_hash(s) for s in steps)]).encode()).hexdigest()[:10]
-
-
-def _uses(module_name: str) -> list:
-    """The callables named by the module's ``USES`` (``"package.module:function"``), imported."""
-    import importlib
-
-    names = getattr(sys.modules.get(module_name), "USES", ()) or ()
-    out = []
-    for name in names:
-        mod, _, fn = str(name).partition(":")
-        out.append(getattr(importlib.import_module(mod), fn))
-    return out
 
 
 def _bound_callables(fn) -> list:

@@ -73,45 +73,45 @@ def test_a_wrapper_s_version_follows_the_method_it_binds(tmp_path):
     assert est != reg.get("sfs", "horn1989+estimated_light").full_version
 
 
-def test_a_method_s_version_follows_the_methods_its_module_uses(tmp_path, monkeypatch):
-    # inverse rendering starts from nayar1991's estimate: its scores change with nayar1991
-    _module(tmp_path, "pb_reg_dep1", "def fn(x):\n    return x\n")
-    _module(tmp_path, "pb_reg_dep2", "def fn(x):\n    return x + 1\n")
-    user = _module(tmp_path, "pb_reg_user", "def solve(x):\n    return x\n")
-    alone = source_hash(user.solve)
+def test_a_method_s_version_follows_the_helper_modules_and_methods_it_imports(tmp_path, monkeypatch):
+    # photometric stereo's shared solvers (_common), the Poisson integrator, the method another
+    # calls (zheng_chellappa1991's horn1989, inverse rendering's starts): a change to any of them
+    # changes the results of the methods that run it, and so must their version
+    from pbrbench import registry
+
+    monkeypatch.setattr(registry, "HELPER_PACKAGES", registry.HELPER_PACKAGES + ("pb_hlp",))
     hashes = []
-    for dep in ("pb_reg_dep1", "pb_reg_dep2"):      # the same source of its own, another dependency
-        monkeypatch.setattr(user, "USES", (f"{dep}:fn",), raising=False)
-        hashes.append(source_hash(user.solve))
-        assert source_hash(user.solve) == hashes[-1]    # stable
-    assert hashes[0] != hashes[1] and alone not in hashes
-    monkeypatch.setattr(user, "USES", ("pb_reg_user:solve",))   # a module naming itself is hashed once
-    assert source_hash(user.solve) == alone
+    for body in ("def step(x):\n    return x\n", "def step(x):\n    return x + 1\n"):
+        for name in [n for n in sys.modules if n.startswith("pb_hlp")]:
+            monkeypatch.delitem(sys.modules, name)
+        registry._SOURCE_HASHES.clear()
+        pkg = tmp_path / f"v{len(hashes)}" / "pb_hlp"
+        pkg.mkdir(parents=True)
+        (pkg / "__init__.py").write_text("")
+        (pkg / "_common.py").write_text(body)
+        (pkg / "method.py").write_text("from pb_hlp._common import step\n\ndef solve(x):\n    return step(x)\n")
+        (pkg / "other.py").write_text("from pb_hlp import method\n\ndef solve(x):\n    return method.solve(x)\n")
+        monkeypatch.syspath_prepend(str(pkg.parent))
+        import importlib
+
+        method, other = (importlib.import_module(f"pb_hlp.{m}") for m in ("method", "other"))
+        assert registry.helper_modules("pb_hlp.method") == ["pb_hlp._common"]
+        assert registry.helper_modules("pb_hlp.other") == ["pb_hlp._common", "pb_hlp.method"]   # through a method
+        hashes.append((source_hash(method.solve), source_hash(other.solve)))
+    assert hashes[0][0] != hashes[1][0] and hashes[0][1] != hashes[1][1]
+    registry._SOURCE_HASHES.clear()
+    from pbrbench.infer.sfs import horn1989, zheng_chellappa1991
     from pbrbench.inverse import nicolet2021
 
-    assert {f"photometric_stereo_{s}" for s in nicolet2021.STARTS} == {u.split(":")[1] for u in nicolet2021.USES}
+    assert "pbrbench.infer.sfs.horn1989" in registry.helper_modules(zheng_chellappa1991.__name__)
+    assert "pbrbench.infer.sfs._common" in registry.helper_modules(horn1989.__name__)
+    starts = registry.helper_modules(nicolet2021.__name__)
+    assert {f"pbrbench.infer.photometric_stereo.{s}" for s in nicolet2021.STARTS} <= set(starts)
+    # the other photometric-stereo methods are no part of inverse rendering's version (its noise scales
+    # are keyed by it), nor documentation
+    assert "pbrbench.infer.photometric_stereo.wu2010" not in starts and "pbrbench.infer._docstring" not in starts
 
 
-
-def test_every_method_that_imports_another_method_s_module_names_it_in_uses():
-    # zheng_chellappa1991 hands its estimate to horn1989: a change to horn1989 changes its scores,
-    # so its version must change too (before USES it did not)
-    import ast
-    import importlib
-    import inspect
-
-    entries = list(builtin_registry(get_tasks()))
-    modules = {e.fn.__module__ if hasattr(e.fn, "__module__") else "" for e in entries}
-    modules = {m for m in modules if m.startswith("pbrbench.infer.") or m.startswith("pbrbench.inverse.")}
-    assert {"pbrbench.infer.sfs.zheng_chellappa1991", "pbrbench.infer.sfs.horn1989"} <= modules
-    missing = []
-    for name in sorted(modules):
-        mod = importlib.import_module(name)
-        used = {u.partition(":")[0] for u in getattr(mod, "USES", ())}
-        for node in ast.walk(ast.parse(inspect.getsource(mod))):
-            if isinstance(node, ast.ImportFrom) and node.module in modules - {name} and node.module not in used:
-                missing.append(f"{name} imports {node.module}")
-    assert not missing, missing
 def test_quality_budgets_are_merged_and_entries_pickle():
     reg = builtin_registry(get_tasks(["sfs", "hdr"]))
     horn = reg.get("sfs", "horn1989")

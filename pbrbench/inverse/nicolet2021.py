@@ -128,9 +128,8 @@ VERSION = "5"  # under direct light each pixel's normal is refitted on the measu
 # fully (version 4 returned the height field's normals; version 4 gave the start back where the fit matched the
 # images worse than it beyond the renders' noise, keep_start = 2 standard errors; version 3 always returned the fit)
 STARTS = ("woodham1980", "nayar1991")
-# the methods it starts from and refits with: their versions are part of this one's (pbrbench.registry.source_hash)
-USES = ("pbrbench.infer.photometric_stereo.woodham1980:photometric_stereo_woodham1980",
-        "pbrbench.infer.photometric_stereo.nayar1991:photometric_stereo_nayar1991")
+# the methods it starts from and refits with, imported from their own modules: their code is part of this one's
+# version (pbrbench.registry.helper_modules)
 ADJOINTS = ("direct", "full")
 LIGHT_MODELS = ("scene", "vectors")
 CLAMP = 20.0           # per-vertex gradient clamp, in medians of |dE/dz|
@@ -370,9 +369,13 @@ def _start(imgs, lv, data, surf, hf_full, start, max_depth):
     """Corner heights, albedo rho, the start's name and its own normals (None for a given pair):
     the normals of the photometric-stereo method ``start`` names (None: :func:`_start_method`)
     integrated and its albedo (the median where it is not valid), or the pair ``start``."""
-    from pbrbench.infer.photometric_stereo import METHODS
+    from pbrbench.infer.photometric_stereo.nayar1991 import photometric_stereo_nayar1991
+    from pbrbench.infer.photometric_stereo.woodham1980 import photometric_stereo_woodham1980
     from pbrbench.inverse import heightfield as HF
 
+    # the two starts by name (their own modules, not the package's table: the table's other methods are
+    # no part of this one's version, pbrbench.registry.helper_modules)
+    methods = {"woodham1980": photometric_stereo_woodham1980, "nayar1991": photometric_stereo_nayar1991}
     h, w = data.shape
     if start is None or isinstance(start, str):
         name = _start_method(max_depth) if start is None else start
@@ -380,11 +383,11 @@ def _start(imgs, lv, data, surf, hf_full, start, max_depth):
             raise ValueError(f"start: {name!r}; use one of {', '.join(STARTS)}, None (by the transport) or a pair "
                              "(corner heights, albedo)")
         try:
-            est = METHODS[name](imgs, lv, mask=data)
+            est = methods[name](imgs, lv, mask=data)
         except ValueError as e:
             if start is not None or name == "woodham1980":
                 raise
-            est, name = METHODS["woodham1980"](imgs, lv, mask=data), f"woodham1980 (nayar1991 refused: {e})"
+            est, name = methods["woodham1980"](imgs, lv, mask=data), f"woodham1980 (nayar1991 refused: {e})"
         zc = _fill_nearest(hf_full.corners(HF.heights_from_normals(est.normals, est.valid, hf_full)), hf_full.active)
         rho0 = np.pi * est.albedo
         med = float(np.median(rho0[est.valid])) if est.valid.any() else 0.5

@@ -39,8 +39,6 @@ from pbrbench.infer.hdr.response import CameraResponse
 __all__ = ["calibrate_grossberg_nayar2003", "brightness_transfer"]
 
 _MAX_KNOTS = 1024
-# Debevec & Malik's smoothness operator, whose module's version is part of this one's (pbrbench.registry.source_hash)
-USES = ("pbrbench.infer.hdr.debevec1997:_smoothness_operator",)
 
 
 def brightness_transfer(za: np.ndarray, zb: np.ndarray, levels: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -23,9 +23,6 @@ from pbrbench.infer.hdr.response import CameraResponse
 
 __all__ = ["calibrate_robertson2003"]
 
-# its start: Debevec & Malik's calibration, whose version is part of this one's (pbrbench.registry.source_hash)
-USES = ("pbrbench.infer.hdr.debevec1997:calibrate_debevec1997",)
-
 
 @docstring(DOCS)
 def calibrate_robertson2003(images, exposure_times, *, max_iter: int = 30, tol: float = 1e-4,

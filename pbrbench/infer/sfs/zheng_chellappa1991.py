@@ -49,11 +49,6 @@ SHAPE_METHODS = {
     "pentland1990": shape_from_shading_pentland1990,
 }
 ESTIMATES = ("both", "albedo", "light")
-# the shape methods it hands the estimated light to: their versions are part of this one's
-# (pbrbench.registry.source_hash)
-USES = ("pbrbench.infer.sfs.horn1989:shape_from_shading_horn1989",
-        "pbrbench.infer.sfs.tsai_shah1994:shape_from_shading_tsai_shah1994",
-        "pbrbench.infer.sfs.pentland1990:shape_from_shading_pentland1990")
 
 
 def zheng_chellappa_moments(m1: float, m2: float) -> tuple[float, float, bool]:
