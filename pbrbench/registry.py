@@ -117,39 +117,42 @@ def _imported_module(module: str, name: str) -> str:
     return owner if isinstance(owner, str) and _in_helpers(owner) else module
 
 
+@functools.lru_cache(maxsize=512)
+def _direct_helpers(src: str) -> tuple[str, ...]:
+    """The helper modules the imports of the module source ``src`` name (parsed once per source:
+    every algorithm of a package reaches the same helpers)."""
+    import ast
+
+    out = []
+    for node in ast.walk(ast.parse(src)):
+        if isinstance(node, ast.ImportFrom) and not node.level and node.module and _in_helpers(node.module):
+            out += [_imported_module(node.module, a.name) for a in node.names]
+        elif isinstance(node, ast.Import):
+            out += [a.name for a in node.names if _in_helpers(a.name)]
+    return tuple(out)
+
+
 def helper_modules(module_name: str) -> list[str]:
     """The modules of :data:`HELPER_PACKAGES` that ``module_name``'s imports reach, directly or
     through each other (``module_name`` left out), sorted: the code an algorithm runs beyond its
     own module."""
-    import ast
-
     seen: set[str] = set()
     todo = [module_name]
     while todo:
         src = _module_source(todo.pop())
-        if src is None:
-            continue
-        for node in ast.walk(ast.parse(src)):
-            targets = []
-            if isinstance(node, ast.ImportFrom) and not node.level and node.module and _in_helpers(node.module):
-                targets = [_imported_module(node.module, a.name) for a in node.names]
-            elif isinstance(node, ast.Import):
-                targets = [a.name for a in node.names if _in_helpers(a.name)]
-            for t in targets:
-                if t != module_name and t not in seen:
-                    seen.add(t)
-                    todo.append(t)
+        for t in _direct_helpers(src) if src is not None else ():
+            if t != module_name and t not in seen:
+                seen.add(t)
+                todo.append(t)
     return sorted(seen)
 
 
 def _source_hash_of(module_name: str, qualname: str) -> str:
     src = _module_source(module_name)
-    if src is None:
-        src = f"{module_name}.{qualname}"
-    h = hashlib.sha256(src.encode()).hexdigest()[:10]
+    h = hashlib.sha256((src if src is not None else f"{module_name}.{qualname}").encode()).hexdigest()[:10]
     # an algorithm module's helpers (a task module's baselines and wrappers are hashed by their own
     # module, and a wrapper by the methods it binds)
-    helpers = helper_modules(module_name) if _in_helpers(module_name) and _module_source(module_name) else []
+    helpers = helper_modules(module_name) if src is not None and _in_helpers(module_name) else []
     if not helpers:    # a module that imports no helper: the hash of its source alone, as it always was
         return h
     parts = [h] + [f"{m}={hashlib.sha256((_module_source(m) or m).encode()).hexdigest()[:10]}" for m in helpers]
@@ -224,7 +227,8 @@ class Algorithm:
     origin: str = "pbrbench"              # where it came from (a module path, an entry point)
     interface: str = ""                   # which of the task's calling conventions ("": the main one)
     figures: bool = True                  # whether the report shows this algorithm's images
-    fingerprint: str | None = None        # source hash frozen at load time (plugins); None: computed
+    fingerprint: str | None = None        # source hash frozen at load time (plugins) or joined with the task's
+    # steps on its output (registry.pipeline_hash: HDR's merge); None: computed
     time_limit: float | None = None       # seconds; set: each call runs in a child process (isolation)
     budgets: Mapping = field(default_factory=dict)   # quality profile name -> options at that profile
     cost_note: str = ""                   # why it takes the time it takes (the report shows it)
