@@ -46,6 +46,7 @@ def main(argv=None) -> int:
     from pbrbench.bench.source import GroundTruthSource
     from pbrbench.registry import builtin_registry
     from pbrbench.render.cache import RenderCache
+    from pbrbench.settings import Settings
 
     draft = Q.PRESETS["draft"]
 
@@ -89,7 +90,7 @@ def main(argv=None) -> int:
         return 1
     vals = {}          # (job key, algorithm) -> {profile name: score} at render seed 0
     by_seed = {}       # (job key, algorithm) -> {profile name: [score per render seed]}
-    cache = RenderCache(a.cache) if a.cache else None
+    cache = RenderCache(a.cache or Settings.from_env().cache)
     for seed in range(a.seeds):
         base = GroundTruthSource(draft, cache=cache, render_seed=seed)
         for q in (draft, more):

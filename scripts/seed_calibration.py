@@ -38,13 +38,15 @@ def main(argv=None) -> int:
     from pbrbench.quality import get_quality
     from pbrbench.registry import builtin_registry
     from pbrbench.render.cache import RenderCache
+    from pbrbench.settings import Settings
 
     q = get_quality(a.quality)
     tasks = load_tasks(sorted({t for t, _ in pairs}))
     reg = builtin_registry(tasks)
+    cache = RenderCache(a.cache or Settings.from_env().cache)
     per = defaultdict(list)        # (task, condition, algorithm, metric, scene) -> [(value, se)]
     for seed in range(a.seeds):
-        src = GroundTruthSource(q, cache=RenderCache(a.cache) if a.cache else None, render_seed=seed)
+        src = GroundTruthSource(q, cache=cache, render_seed=seed)
         for tname, scene in pairs:
             task = tasks[tname]
             jobs = [j for j in task.jobs(q) if j.scene.split(":")[0] == scene and j.param("plot") is None]

@@ -30,6 +30,9 @@ class GroundTruthSource:
         from pbrbench.scene.load import SceneLibrary
 
         self.quality = require(quality)
+        if cache is None:
+            raise TypeError("cache: None is not a render cache; pass a pbrbench.render.cache.RenderCache "
+                            "(RenderCache(Settings.from_env().cache) for pbrbench's own)")
         self.cache = cache
         self.variant = variant
         self.library = library if library is not None else SceneLibrary()   # where the scenes are found

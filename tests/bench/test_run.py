@@ -186,3 +186,12 @@ def test_end_to_end_draft_cli(tmp_path, cache_dir):
     q = subprocess.run(base + ["run", "--quality", "draft", "--tasks", name, "--check", "--no-report"] + common,
                        capture_output=True, text=True, env=env, timeout=900)
     assert q.returncode == 1 and "--update-baselines" in q.stderr, q.stderr[-2000:]
+
+
+def test_source_without_a_cache_says_what_to_pass():
+    # a script that handed cache=None on (its --cache left out) failed only at the first load,
+    # with an AttributeError deep in the render cache
+    from pbrbench.bench.source import GroundTruthSource
+
+    with pytest.raises(TypeError, match="RenderCache"):
+        GroundTruthSource(DRAFT, None)
