@@ -128,8 +128,8 @@ def _boundary_pixels(E, s, m, boundary, theta_max):
             # ... unless the light is near the view: along it the flat start is a fixed point of the
             # iteration (R_p = R_q = 0), near it almost one, and the contour pixels that look like one
             # are all there is (the test is specific there: NEAR_VIEW_DEG)
-            along_view = float(s[2]) >= VIEW_LIGHT_COS
-            bnd = ok if (ok.sum() >= AUTO_CONTOUR_FRACTION * bnd.sum() or along_view) else np.zeros_like(m)
+            near_view = float(s[2]) >= VIEW_LIGHT_COS
+            bnd = ok if (ok.sum() >= AUTO_CONTOUR_FRACTION * bnd.sum() or near_view) else np.zeros_like(m)
     else:
         bnd = check_mask(boundary, m.shape, "boundary") & m if np.asarray(boundary).any() else np.zeros_like(m)
     return bnd
