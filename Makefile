@@ -21,10 +21,9 @@ bench: $(STAMP)
 
 # pyproject.toml's addopts: -ra (the summary of every test not passed, skips with their reasons; a
 # skip not on tests/allowed_skips.txt fails the run) and -n auto (pytest-xdist, a worker per core).
-# PYTHONDONTWRITEBYTECODE= : the run writes its bytecode caches (__pycache__, ignored by git), so the
-# suite's child interpreters do not compile pbrbench and the tests again where the variable is set
+# The run writes its bytecode caches even where PYTHONDONTWRITEBYTECODE is set: tests/conftest.py
 test: $(STAMP)
-	PYTHONDONTWRITEBYTECODE= $(VENV)/bin/pytest -q
+	$(VENV)/bin/pytest -q
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check pbrbench tests

@@ -16,11 +16,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 ALLOWED_SKIPS = Path(__file__).resolve().parent / "allowed_skips.txt"
 
-# The suite writes its bytecode caches (__pycache__, ignored by git) even where the environment sets
-# PYTHONDONTWRITEBYTECODE, as `make test` does: otherwise every run compiles pbrbench again and
-# pytest rewrites the asserts of every test module again (7 of the fast loop's 13 s of collection,
-# in each worker), and the suite's child interpreters compile pbrbench again.  Set here, before
-# the test modules are imported; the children inherit the environment.
+# The suite writes its bytecode caches (__pycache__, ignored by git) even where the environment
+# sets PYTHONDONTWRITEBYTECODE, for `make test` and a bare `pytest` alike: otherwise every run
+# compiles pbrbench again and pytest rewrites the asserts of every test module again (7 of the
+# fast loop's 13 s of collection, in each worker), and the suite's child interpreters compile
+# pbrbench again.  Set here, before the test modules are imported; the children inherit the
+# environment.
 sys.dont_write_bytecode = False
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
