@@ -45,7 +45,7 @@ def main(argv=None) -> int:
     from pbrbench.quality import get_quality
     from pbrbench.registry import builtin_registry
     from pbrbench.render.cache import RenderCache
-    from pbrbench.render.groundtruth import AOV_REPLICATED, JK, GroundTruth
+    from pbrbench.render.groundtruth import GroundTruth
     from pbrbench.settings import Settings
 
     q = get_quality(a.quality)
@@ -55,13 +55,13 @@ def main(argv=None) -> int:
     cache = RenderCache(a.cache or Settings.from_env().cache)
 
     def perturbed(g, group=0):
+        # the full ground truth moved by EPS toward its replicate without ``group``: every array the
+        # replicate rebuilds (its passes and their derived ones, GroundTruth.replicate's rules)
+        rep = g.replicate(group)
         arr = dict(g.arrays)
-        for n in g.base_names:
-            d = None if n in AOV_REPLICATED else g.arrays.get(f"{n}{JK}{group}")
-            if d is not None:
-                arr[n] = (g.arrays[n] + EPS * d).astype(np.float32)
-        if "indirect" in arr and "radiance" in arr and "direct" in arr:
-            arr["indirect"] = arr["radiance"] - arr["direct"]
+        for n, x in rep.arrays.items():
+            if x is not g.arrays[n]:
+                arr[n] = (g.arrays[n] + EPS * (x - g.arrays[n])).astype(np.float32)
         return GroundTruth(arr, dict(g.meta))
 
     def values(gts, job, seed):
