@@ -20,7 +20,11 @@ images is biased by O(1/spp): each replicate has ``(G-1)/G`` of the samples, so 
 also depend on the seed (injected camera noise), the job is also scored with ``K`` other seeds
 (``v_{n,1} ... v_{n,K}``, on the full ground truth): ``v`` and those ``K`` are ``K + 1``
 independent draws of the seed's effect, and their sample variance (``K`` degrees of freedom) is
-added.  The degrees of freedom of a sum of variances come from the Welch-Satterthwaite rule.  Intervals use Student's t on those degrees of freedom.
+added.  A score chaotic in its input (an iteration stopped before its fixed point: a change of
+the input far below the render noise moves it by a large part of its spread) makes the
+replicates independent draws rather than a jackknife series; a rescoring on a slightly perturbed
+ground truth detects it (:func:`chaotic`), and its standard error then comes from the draws
+(:func:`draws`, ``G`` dof, no bias estimate).  The degrees of freedom of a sum of variances come from the Welch-Satterthwaite rule.  Intervals use Student's t on those degrees of freedom.
 
 Only the standard library and, for the t quantiles, SciPy (imported on first use) are used.
 
@@ -47,6 +51,10 @@ GAP_CRITICAL = {3: 0.9994, 4: 0.9783, 5: 0.9242, 6: 0.8613, 7: 0.8028, 8: 0.7557
 SIDES_FROM = 6           # from this many replicates on, a flip leaves at least two on each side of its gap
 UNSTABLE_MIN_GAP = 0.05  # a flip moves the score by at least this fraction of its size: smaller gaps
                          # are the quantisation of a counting metric (one pixel more or less), not a flip
+PERTURBATION = 1e-3     # the perturbed ground truth: this fraction of the way toward the replicate without
+                        # group 0 (a change a thousand times below the render noise)
+CHAOS_THRESHOLD = 0.05  # a perturbed score that moves more than this many jackknife SEs beyond its
+                        # first-order change is chaotic in its input (:func:`chaotic`)
 
 
 def finite(x) -> bool:
@@ -156,12 +164,54 @@ def mean_over_seeds(value: float, reps, rep_noise) -> tuple[float, list[float] |
     return m, (None if reps is None else [float(r) + (m - float(value)) for r in reps])
 
 
-def estimate(value: float, reps=None, rep_noise=None, *, mean: bool = False) -> dict:
-    """``uncertainty`` (one standard error), ``dof``, ``bias`` and ``unstable`` of a score from its
-    replicates and its other seeds' values ``rep_noise`` (module docstring); NaN / 0 / None where
-    they cannot be estimated.  ``mean``: ``value`` is the mean over the seeds
-    (:func:`mean_over_seeds`, :func:`noise_part`)."""
+def chaotic(value: float, reps, perturbed) -> bool | None:
+    """Whether a score is chaotic in its input: rescored on the ground truth moved by
+    :data:`PERTURBATION` toward its replicate without group 0
+    (:meth:`pbrbench.render.groundtruth.GroundTruth.perturbed`), a score smooth in its input
+    moves by ``eps (v_(0) - v)`` to first order; one whose move differs from that by more than
+    :data:`CHAOS_THRESHOLD` of its jackknife standard error depends on far less than the render
+    noise (an iteration stopped before it converged, whose end point jumps with the last bits of
+    its input).  None when there is no perturbed value or no jackknife."""
+    se_j, _, dof_j = jackknife(value, reps)
+    if not finite(perturbed) or not dof_j or not finite(se_j):
+        return None
+    e = (float(perturbed) - float(value)) - PERTURBATION * (float(reps[0]) - float(value))
+    return se_j > 0 and abs(e) > CHAOS_THRESHOLD * se_j
+
+
+def draws(value: float, reps, perturbed) -> tuple[float, int]:
+    r"""``(SE, dof)`` of a chaotic score (:func:`chaotic`), whose ``G`` replicates and perturbed
+    value are independent draws rather than a jackknife series: the variance of one draw pooled
+    from the perturbed pair, ``(v_eps - v)^2 / 2`` (1 dof), and the replicates' sample variance
+    scaled to the full sample count by ``(G - 1) / G`` (``G - 1`` dof),
+
+    .. math::
+
+        \mathrm{SE}^2 = \frac1G \Big[\frac{(v_\varepsilon - v)^2}{2}
+                         + \frac{G-1}{G} \sum_i (v_{(i)} - \bar v)^2\Big] \quad (G \text{ dof}).
+
+    The jackknife would state ``(G - 1) / \sqrt G`` times that spread (its ``G - 1`` factor
+    assumes the replicates share all but one group's noise), and its bias ``(G - 1)(\bar v - v)``
+    is noise: a chaotic score has no bias estimate."""
+    G = len(reps)
+    m = sum(float(r) for r in reps) / G
+    ss = sum((float(r) - m) ** 2 for r in reps)
+    var = ((float(perturbed) - float(value)) ** 2 / 2 + (G - 1) / G * ss) / G
+    return math.sqrt(var), G
+
+
+def estimate(value: float, reps=None, rep_noise=None, *, mean: bool = False, perturbed=None) -> dict:
+    """``uncertainty`` (one standard error), ``dof``, ``bias``, ``unstable`` and ``chaotic`` of a
+    score from its replicates, its other seeds' values ``rep_noise`` and its value on the
+    perturbed ground truth ``perturbed`` (module docstring); NaN / 0 / None where they cannot be
+    estimated.  ``mean``: ``value`` is the mean over the seeds (:func:`mean_over_seeds`,
+    :func:`noise_part`; ``perturbed`` then moved with it).  A chaotic score (:func:`chaotic`)
+    takes the render part of its error from :func:`draws` and has no bias estimate."""
     se_j, bias, dof_j = jackknife(value, reps)
+    chaos = chaotic(value, reps, perturbed) if dof_j else None
+    if chaos:
+        se_j, dof_j = draws(value, reps, perturbed)
+        bias = float("nan")
     parts = []
     if dof_j:
         parts.append((se_j * se_j, dof_j))
@@ -169,11 +219,11 @@ def estimate(value: float, reps=None, rep_noise=None, *, mean: bool = False) -> 
     if noise is not None:
         parts.append(noise)
     if not parts:
-        return {"uncertainty": float("nan"), "dof": 0.0, "bias": float("nan"), "unstable": None}
+        return {"uncertainty": float("nan"), "dof": 0.0, "bias": float("nan"), "unstable": None, "chaotic": None}
     var = sum(v for v, _ in parts)
     dof = satterthwaite(parts) if var > 0 else float(sum(d for _, d in parts))
     return {"uncertainty": math.sqrt(var), "dof": round(float(min(dof, sum(d for _, d in parts))), 3), "bias": bias,
-            "unstable": unstable(reps) if dof_j else None}
+            "unstable": unstable(reps) if dof_j else None, "chaotic": chaos}
 
 
 def standard_error(value: float, reps=None, rep_noise=None) -> float:
@@ -253,6 +303,8 @@ def _paired_jackknife(x: dict, ref: dict):
     differences when both scores come from one ground truth (the same render, e.g. global and
     local of one scene) with the same number of replicates; None otherwise."""
     same_gt = bool(x.get("scene_hash")) and x.get("scene_hash") == ref.get("scene_hash")
+    if x.get("chaotic") or ref.get("chaotic"):
+        return None   # independent draws (:func:`chaotic`): no jackknife series to pair
     rx, rr = replicates_of(x), replicates_of(ref)
     if same_gt and rx and rr and len(rx) == len(rr) and finite(x.get("value")) and finite(ref.get("value")):
         return jackknife(x["value"] - ref["value"], [a - b for a, b in zip(rx, rr, strict=True)])
@@ -290,6 +342,8 @@ def bias_of(s: dict) -> float:
     b = s.get("bias")
     if finite(b):
         return float(b)
+    if s.get("chaotic"):
+        return float("nan")   # its replicates are independent draws: their mean is no bias (:func:`draws`)
     return jackknife(s.get("value", float("nan")), replicates_of(s))[1]
 
 

@@ -13,7 +13,9 @@ replicates' sample variance scaled to the full sample count by ``(G - 1) / G``; 
 ``draws|conv0``: the same, only for algorithms whose own run reports ``converged = 0``.  Each
 column is ``sqrt(mean(observed^2 / predicted^2))`` over the algorithm's scores (1 is exact).  Jobs
 with injected camera noise are left out (their seed part is not modelled here).  A measurement
-script: nothing in a run uses it.
+script for the estimator's threshold and gate: the runs apply the gated rule themselves
+(:func:`pbrbench.uncertainty.chaotic`, :func:`pbrbench.uncertainty.draws`), and
+``scripts/seed_calibration.py`` measures the standard errors they report.
 """
 
 from __future__ import annotations
@@ -26,7 +28,7 @@ from collections import defaultdict
 
 import numpy as np
 
-EPS = 1e-3
+from pbrbench.uncertainty import PERTURBATION as EPS  # the runs' perturbation (1e-3)
 
 
 def main(argv=None) -> int:
@@ -45,7 +47,6 @@ def main(argv=None) -> int:
     from pbrbench.quality import get_quality
     from pbrbench.registry import builtin_registry
     from pbrbench.render.cache import RenderCache
-    from pbrbench.render.groundtruth import GroundTruth
     from pbrbench.settings import Settings
 
     q = get_quality(a.quality)
@@ -53,16 +54,6 @@ def main(argv=None) -> int:
     task = tasks[a.task]
     algs = list(builtin_registry(tasks).for_task(a.task))
     cache = RenderCache(a.cache or Settings.from_env().cache)
-
-    def perturbed(g, group=0):
-        # the full ground truth moved by EPS toward its replicate without ``group``: every array the
-        # replicate rebuilds (its passes and their derived ones, GroundTruth.replicate's rules)
-        rep = g.replicate(group)
-        arr = dict(g.arrays)
-        for n, x in rep.arrays.items():
-            if x is not g.arrays[n]:
-                arr[n] = (g.arrays[n] + EPS * (x - g.arrays[n])).astype(np.float32)
-        return GroundTruth(arr, dict(g.meta))
 
     def values(gts, job, seed):
         out = task.run_job(job, gts, seed=seed, algorithms=algs, quality=q).scores
@@ -83,7 +74,7 @@ def main(argv=None) -> int:
             G = min(g.groups for g in gts.values())
             full = values(gts, job, seed)
             reps = [values({n: g.replicate(i) for n, g in gts.items()}, job, seed) for i in range(G)]
-            pert = values({n: perturbed(g) for n, g in gts.items()}, job, seed)
+            pert = values({n: g.perturbed(EPS) for n, g in gts.items()}, job, seed)
             for (alg, metric), v in full.items():
                 if metric in ("failed", "converged"):
                     continue

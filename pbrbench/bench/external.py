@@ -57,6 +57,7 @@ from pbrbench.io.files import fmt_bytes as _fmt_bytes
 from pbrbench.scene.data import MAX_DATA_BYTES
 
 MANIFEST = "manifest.json"
+PERTURBED = "replicates/perturbed"   # the input set of the perturbed ground truth (chaos test)
 FORMAT = "pbrbench-export/2"    # 2: three other noise seeds (replicates/noise, noise2, noise3)
 _JOB = contextvars.ContextVar("pbrbench_external_job", default=None)
 _SUFFIXES = (".npy", ".exr", ".png", ".tif", ".tiff", ".pfm", ".txt")
@@ -194,16 +195,20 @@ def _prediction_entry(task, pred, inputs) -> dict:
 # ----------------------------------------------------------------------------- export
 def input_sets(task, job, gts: dict, seed: int) -> list[tuple[str, dict, int]]:
     """``(sub-folder, ground truths, seed)`` of every input set a job is scored on: the full
-    ground truth (``""``), each delete-one-group replicate (``replicates/<i>``) and, where the
-    inputs depend on the seed, the other seeds (``replicates/noise``, ``replicates/noise2``, ...):
-    the sets :mod:`pbrbench.bench.uncertainty` scores for the standard error."""
+    ground truth (``""``), each delete-one-group replicate (``replicates/<i>``), the perturbed
+    ground truth (``replicates/perturbed``: the chaos test, which a program's predictions get as
+    a plugin's do) and, where the inputs depend on the seed, the other seeds
+    (``replicates/noise``, ``replicates/noise2``, ...): the sets :mod:`pbrbench.bench.uncertainty`
+    scores for the standard error."""
     from pbrbench.bench.uncertainty import noise_seeds
+    from pbrbench.uncertainty import PERTURBATION
 
     sets = [("", gts, seed)]
     groups = {getattr(g, "groups", 0) for g in gts.values()}
     if all(getattr(g, "has_replicates", False) for g in gts.values()) and len(groups) == 1:
         (G,) = groups
         sets += [(f"replicates/{i}", {n: g.replicate(i) for n, g in gts.items()}, seed) for i in range(G)]
+        sets.append((PERTURBED, {n: g.perturbed(PERTURBATION) for n, g in gts.items()}, seed))
     if task.seed_dependent(job):
         sets += [(f"replicates/noise{k + 1 if k else ''}", gts, sk) for k, sk in enumerate(noise_seeds(seed))]
     return sets
@@ -287,10 +292,13 @@ def _readme(task, manifest) -> str:
             f"pbrbench's own algorithms (float64); the .exr/.png files are the same images for any program.\n\n"
             f"Write into each job folder (or a copy of the tree given to --predictions):\n{preds}\n\n"
             + ("Standard errors: each job folder also holds replicates/0, replicates/1, ... (the same inputs made\n"
-               "from the render's independent sample groups, one left out each) and, where the inputs depend on\n"
-               "the seed, replicates/noise, replicates/noise2, ... (other noise seeds).  Run your program on\n"
-               "every replicates/* folder too and write the same files there: evaluate then gives every score\n"
-               "its ± (the delete-one-group jackknife), and its Monte Carlo bias.\n\n"
+               "from the render's independent sample groups, one left out each), replicates/perturbed (the full\n"
+               "inputs moved by 1e-3 of the way toward replicates/0: whether your program's output jumps with a\n"
+               "change far below the render noise, as an iteration stopped before it converged can) and, where\n"
+               "the inputs depend on the seed, replicates/noise, replicates/noise2, ... (other noise seeds).  Run\n"
+               "your program on every replicates/* folder too and write the same files there: evaluate then\n"
+               "gives every score its ± (the delete-one-group jackknife, or the spread of independent draws\n"
+               "where the output is chaotic), and its Monte Carlo bias.\n\n"
                if manifest.get("replicates") else "")
             + f"Then score them:  pbrbench evaluate {task.name} THIS_FOLDER [--name MINE]\n\n"
             f"Conventions: {json.dumps(CONVENTIONS, indent=1)}\n")
@@ -843,6 +851,11 @@ class EvaluatedTask:
 
     def builtin_algorithms(self):
         return self.task.builtin_algorithms()
+
+    def scores_perturbed(self, job) -> bool:
+        """Whether the export holds the job's perturbed input set (exports made before it existed
+        do not: the chaos test is then not run, :mod:`pbrbench.bench.uncertainty`)."""
+        return any(r.get("folder", "").endswith(PERTURBED) for r in self.records[job.key].get("replicates") or [])
 
     def jobs(self, quality):
         jobs = [j for j in self.task.export_jobs(quality) if j.key in self.records]

@@ -14,7 +14,8 @@ Schema (version :data:`SCHEMA_VERSION`, created and upgraded by the explicit, nu
   behind it (replicates: the delete-one-group values as JSON; noise_reps: the values at the
   other seeds of a seed-dependent job as JSON, and rep_noise the first of them, the only one
   before schema 6; rep_a, rep_b: the two half-sample values of runs stored before schema 5),
-  dof, bias, unstable, seconds,
+  dof, bias, unstable, perturbed (the value on the perturbed ground truth, where it was scored),
+  chaotic (its SE then from independent draws), seconds,
   better (lower | higher), unit, job (the job key, for resuming);
 * ``jobs``: which jobs of a run are complete (a job may produce no score; resume skips it);
 * ``ground_truths``: per run and scene, the ground truth used (hash, quality, spp, resolution,
@@ -149,6 +150,10 @@ ALTER TABLE scores ADD COLUMN noise_mean INTEGER
 ALTER TABLE jobs ADD COLUMN cpu_seconds REAL;
 ALTER TABLE ground_truths ADD COLUMN render_cpu_seconds REAL
 """),
+    (10, "the value on the perturbed ground truth and whether the score is chaotic in its input (its SE from draws)", """
+ALTER TABLE scores ADD COLUMN perturbed REAL;
+ALTER TABLE scores ADD COLUMN chaotic INTEGER
+"""),
 ]
 SCHEMA_VERSION = MIGRATIONS[-1][0]
 
@@ -156,7 +161,7 @@ RUN_FIELDS = ("id", "time", "git_revision", "pbrbench_version", "mitsuba_version
               "numpy_version", "variant", "machine", "quality", "config", "status", "finished")
 SCORE_FIELDS = ("run", "task", "scene", "scene_hash", "condition", "algorithm", "algorithm_version",
                 "metric", "value", "seconds", "better", "unit", "job", "uncertainty", "rep_noise", "replicates", "dof",
-                "bias", "unstable", "noise_reps", "noise_mean")
+                "bias", "unstable", "noise_reps", "noise_mean", "perturbed", "chaotic")
 
 
 def _now() -> str:
@@ -525,7 +530,8 @@ class Store:
                          _num(d.get("uncertainty")), _num(_first(noise_values(d.get("rep_noise")))),
                          _reps(d.get("replicates")), _num(d.get("dof")), _num(d.get("bias")),
                          None if d.get("unstable") is None else int(bool(d["unstable"])),
-                         _reps(noise_values(d.get("rep_noise")) or None), 1 if d.get("noise_mean") else None))
+                         _reps(noise_values(d.get("rep_noise")) or None), 1 if d.get("noise_mean") else None,
+                         _num(d.get("perturbed")), None if d.get("chaotic") is None else int(bool(d["chaotic"]))))
         with self.transaction() as c:
             c.execute("DELETE FROM scores WHERE run = ? AND job = ?", (run_id, job_key))
             c.executemany(f"INSERT INTO scores ({', '.join(SCORE_FIELDS)}) VALUES ({', '.join('?' * len(SCORE_FIELDS))})", rows)
@@ -561,6 +567,8 @@ class Store:
                 d["bias"] = float("nan")
             if d.get("unstable") is not None:
                 d["unstable"] = bool(d["unstable"])
+            if d.get("chaotic") is not None:
+                d["chaotic"] = bool(d["chaotic"])
             d["noise_mean"] = bool(d.get("noise_mean"))   # older rows: the own seed's draw
             out.append(d)
         return out

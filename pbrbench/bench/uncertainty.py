@@ -30,6 +30,13 @@ inverse-rendering methods, each call of which is a series of Mitsuba renders; an
 table does not name exactly (another version, scene content or quality) falls back to the
 replicates.
 
+An algorithm whose own run reports ``converged = 0`` (and every plugin) is scored once more, on
+the full ground truth moved by :data:`pbrbench.uncertainty.PERTURBATION` toward the replicate
+without group 0 (:meth:`pbrbench.render.groundtruth.GroundTruth.perturbed`; ``perturbed``): a
+score that moves far beyond the first-order change is chaotic in its input, its replicates are
+independent draws, and its standard error comes from them as such, with no bias estimate
+(:func:`pbrbench.uncertainty.chaotic`, :func:`pbrbench.uncertainty.draws`).
+
 The replicate values are stored with the score (``replicates``, ``rep_noise``), so a difference
 between two conditions rendered from the same ground truth (``global - local`` of one scene) gets
 its own paired jackknife, which accounts for their correlation (:func:`pbrbench.uncertainty.paired`).
@@ -43,7 +50,7 @@ import functools
 import json
 from pathlib import Path
 
-from pbrbench.uncertainty import estimate, finite, mean_over_seeds, noise_values
+from pbrbench.uncertainty import PERTURBATION, estimate, finite, mean_over_seeds, noise_values
 
 SCALES_FILE = Path(__file__).with_name("noise_scales.json")
 
@@ -113,9 +120,10 @@ def scaled_scores(full, quality, scales: dict | None = None, noise_hashes: dict 
 
 def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, full=None, scales=None,
                      noise_hashes: dict | None = None) -> dict[str, dict]:
-    """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "rep_noise": {key: [v_n1, ..., v_nK]}}`` for the job's
-    scores (keys ``(scene, algorithm, metric)``); parts that cannot be computed (a ground truth
-    without its sample groups, a job whose inputs do not depend on the seed) are absent.
+    """``{"replicates": {key: [v_(0), ..., v_(G-1)]}, "perturbed": {key: v_eps}, "rep_noise": {key: [v_n1,
+    ..., v_nK]}}`` for the job's scores (keys ``(scene, algorithm, metric)``); parts that cannot be
+    computed (a ground truth without its sample groups, no algorithm to test for chaos, a job whose
+    inputs do not depend on the seed) are absent.
 
     ``full``: the job's scores on the full ground truths, scored just before on ``gts`` (whose
     :attr:`~pbrbench.render.groundtruth.GroundTruth.reads` then name every array the job read): a
@@ -156,6 +164,13 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
             for k, v in vals.items():
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
+        chaos = _chaos_candidates(task, job, full, algorithms)
+        if chaos and any(g.varies(0) for g in gts.values()):
+            moved = {n: g.perturbed(PERTURBATION) for n, g in gts.items()}
+            vals = _values(task.run_job(job, moved, seed=seed, algorithms=chaos, quality=quality).scores)
+            names = {a.name for a in chaos}
+            out["perturbed"] = {k: v for k, v in vals.items() if k[1] in names}
+            _drop_failed(vals)
     if seed_dependent:
         noise: dict = {}
         seeds = noise_seeds(seed)
@@ -168,9 +183,22 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
     return out
 
 
+def _chaos_candidates(task, job, full, algorithms) -> list:
+    """The algorithms of a job rescored on the perturbed ground truth (the chaos test,
+    :func:`pbrbench.uncertainty.chaotic`): those whose own run reports ``converged = 0`` (an
+    iteration stopped before its fixed point may jump with the last bits of its input; a converged
+    one is smooth in it) and plugins (an outside program's convergence is not known), where the
+    task scores that input set (an evaluated export made before it was written: not)."""
+    if full is None or not getattr(task, "scores_perturbed", lambda job: True)(job):
+        return []
+    unconverged = {a for (_, a, m), v in full.items() if m == "converged" and v == 0.0}
+    return [a for a in algorithms if a.name in unconverged or a.kind == "plugin"]
+
+
 def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
-    """The score dicts with ``replicates``, ``rep_noise``, ``uncertainty``, ``dof``, ``bias`` and
-    ``unstable`` filled in (and ``noise_mean``: the value is the mean over the seeds)."""
+    """The score dicts with ``replicates``, ``rep_noise``, ``perturbed``, ``uncertainty``, ``dof``,
+    ``bias``, ``unstable`` and ``chaotic`` filled in (and ``noise_mean``: the value is the mean
+    over the seeds)."""
     # the metrics package imports SciPy's image modules: not at the import of this module
     from pbrbench.metrics.table import STATUS
 
@@ -179,16 +207,21 @@ def attach(scores: list[dict], reps: dict[str, dict]) -> list[dict]:
         scale = reps.get("scales", {}).get(k)
         if scale is not None:     # the standard error over independent render seeds (module docstring)
             s.update(replicates=None, rep_noise=None, uncertainty=scale[0], dof=scale[1],
-                     bias=float(scale[2]) if len(scale) > 2 else float("nan"), unstable=None)
+                     bias=float(scale[2]) if len(scale) > 2 else float("nan"), unstable=None, perturbed=None,
+                     chaotic=None)
             continue
         r = reps.get("replicates", {}).get(k)
         s["replicates"] = list(r) if r is not None else None
         n = reps.get("rep_noise", {}).get(k)
         s["rep_noise"] = list(n) if n is not None else None
+        p = reps.get("perturbed", {}).get(k) if s["metric"] not in STATUS else None
         s["noise_mean"] = bool(noise_values(s["rep_noise"])) and s["metric"] not in STATUS and finite(s["value"])
         if s["noise_mean"]:   # a seed-dependent score: the mean over its seeds (module docstring)
+            v0 = s["value"]
             s["value"], s["replicates"] = mean_over_seeds(s["value"], s["replicates"], s["rep_noise"])
-        s.update(estimate(s["value"], s["replicates"], s["rep_noise"], mean=s["noise_mean"]))
+            p = None if p is None else p + (s["value"] - v0)    # moved with the replicates
+        s["perturbed"] = p if finite(p) else None
+        s.update(estimate(s["value"], s["replicates"], s["rep_noise"], mean=s["noise_mean"], perturbed=s["perturbed"]))
     # a flipped discrete choice is the pipeline's, not one metric's: every metric of that
     # algorithm's output on the job is unstable when one of them is
     flipped = {(s["scene"], s["algorithm"]) for s in scores if s.get("unstable")}

@@ -179,6 +179,20 @@ class GroundTruth:
             arrays["unoccluded_fraction"] = unoccluded_fraction(arrays["direct"], arrays["direct_unoccluded"])
         return GroundTruth(arrays, dict(self.meta, replicate=int(group)))
 
+    def perturbed(self, eps: float, group: int = 0) -> GroundTruth:
+        """This ground truth moved by the fraction ``eps`` of the way toward its replicate without
+        ``group`` (:meth:`replicate`): every array the replicate rebuilds becomes ``X + eps (X_(group)
+        - X)``, the others are shared.  A score smooth in its input moves by ``eps (v_(group) - v)``
+        to first order; one that moves much more is chaotic in it (:func:`pbrbench.uncertainty.chaotic`)."""
+        if not (isinstance(eps, (int, float)) and 0 < eps < 1):
+            raise ValueError(f"eps: a fraction in (0, 1) of the way toward the replicate, got {eps!r}")
+        rep = self.replicate(group)
+        arrays = dict(self.arrays)
+        for n, x in rep.arrays.items():
+            if x is not self.arrays[n]:
+                arrays[n] = (self.arrays[n] + eps * (x - self.arrays[n])).astype(np.float32)
+        return GroundTruth(arrays, dict(self.meta, perturbed=float(eps)))
+
     @property
     def n_lights(self) -> int:
         return int(self.meta.get("n_light_set", 0))

@@ -68,9 +68,11 @@ ROUNDING = 1e-6
 
 
 def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.0, dof: float = 0.0,
-         bias: float = float("nan"), unstable: bool = False, correctable: bool = True) -> dict:
+         bias: float = float("nan"), unstable: bool = False, correctable: bool = True, chaotic: int = 0) -> dict:
     """One headline cell: value, standard error, dof, scenes, bias, and the flags the report shows;
-    ``correctable`` False withholds the bias-corrected value (module docstring)."""
+    ``correctable`` False withholds the bias-corrected value (module docstring); ``chaotic`` the
+    number of its scores chaotic in their input (:func:`pbrbench.uncertainty.chaotic`: their ±
+    from independent draws, no bias estimate)."""
     sig = significant(value, se, ROUNDING * abs(reference) if finite(reference) else 0.0, dof=dof or None) \
         if effect and not unstable else None
     # a bimodal cell's jackknife bias averages a flip: it is not shown as a correction
@@ -78,7 +80,7 @@ def cell(value: float, se: float, n: int, *, effect: bool, reference: float = 0.
     return {"value": value, "se": se, "dof": dof, "n": n, "effect": effect, "significant": sig,
             "insignificant": sig is False, "bias": bias, "noise_limited": bool(limited),
             "corrected": value - bias if finite(bias) and correctable else float("nan"),
-            "correction_fails": bool(limited and not correctable), "unstable": bool(unstable)}
+            "correction_fails": bool(limited and not correctable), "unstable": bool(unstable), "chaotic": int(chaotic)}
 
 
 def _correctable(scores: list[dict]) -> bool:
@@ -94,7 +96,8 @@ def summary(scores: list[dict], *, effect: bool = False, reference: float = 0.0)
     biases = [bias_of(s) for s in scores]
     bias = sum(biases) / len(biases) if biases and all(finite(b) for b in biases) else float("nan")
     return cell(m, se, len(scores), effect=effect, reference=reference, dof=dof, bias=bias,
-                unstable=any(s.get("unstable") for s in scores), correctable=_correctable(scores))
+                unstable=any(s.get("unstable") for s in scores), correctable=_correctable(scores),
+                chaotic=sum(bool(s.get("chaotic")) for s in scores))
 
 
 def difference(others: list[dict], bases: list[dict]) -> dict:
@@ -106,7 +109,8 @@ def difference(others: list[dict], bases: list[dict]) -> dict:
     bias = sum(biases) / len(biases) if all(finite(x) for x in biases) else float("nan")
     ref_mean = sum(b["value"] for b in bases) / len(bases)
     return cell(m, se, len(bases), effect=True, reference=ref_mean, dof=dof, bias=bias,
-                unstable=any(s.get("unstable") for s in [*others, *bases]), correctable=_correctable([*others, *bases]))
+                unstable=any(s.get("unstable") for s in [*others, *bases]), correctable=_correctable([*others, *bases]),
+                chaotic=sum(bool(s.get("chaotic")) for s in [*others, *bases]))
 
 
 def effect_tables(scores: list[dict], info: dict, geometry: dict[str, str] | None = None,

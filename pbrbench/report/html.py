@@ -161,6 +161,10 @@ def headline_tables(scores: list[dict], info: dict, marks: dict | None = None,
                                  if c.get("correction_fails") else f"error, bias-corrected value {c['corrected']:.4g}"))
                 if c.get("unstable"):
                     cls = (cls + " unstable").strip()
+                if c.get("chaotic"):
+                    title += (f"; {c['chaotic']} score(s) chaotic in their input (an iteration stopped before it "
+                              "converged: a change far below the render noise moves them): their ± from the "
+                              "replicates as independent draws, no bias estimate")
                 if r["group"] is None:
                     mark = marks.get((t["task"], r["algorithm"], col["condition"]))
                 else:

@@ -61,7 +61,8 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
     with Store(tmp_path / "h.sqlite") as s:
         rid = s.create_run(quality_name="draft", config={"tasks": ["t"]}, variant="scalar_rgb", env=ENV)
         s.add_job_result(rid, "t|s|local|", "t", [score(value=0.5), score("nan_metric", float("nan")),
-                                                 dict(score("noisy", 0.7), rep_noise=[0.6, 0.8, 0.7], noise_mean=True)],
+                                                 dict(score("noisy", 0.7), rep_noise=[0.6, 0.8, 0.7], noise_mean=True),
+                                                 dict(score("jumpy", 25.6), perturbed=25.2, chaotic=True)],
                          seconds=1.0)
         s.add_ground_truth(rid, "s", {"scene_hash": "h", "quality": "draft", "spp": 4, "resolution": [32, 32],
                                       "noise": {"radiance_rel_sd_rms": 0.01}, "wall_s": 0.2}, from_cache=False,
@@ -76,12 +77,15 @@ def test_runs_scores_roundtrip_and_export(tmp_path):
         # a seed-dependent score's value is the mean over its seeds; the flag comes back (NULL: False)
         assert sc["noisy"]["noise_mean"] is True and sc["noisy"]["rep_noise"] == [0.6, 0.8, 0.7]
         assert sc["rmse"]["noise_mean"] is False
+        # the chaos test: the perturbed value and the flag come back (NULL: not tested)
+        assert (sc["jumpy"]["perturbed"], sc["jumpy"]["chaotic"]) == (25.2, True)
+        assert sc["rmse"]["perturbed"] is None and sc["rmse"]["chaotic"] is None
         assert s.ground_truths(rid)[0]["noise"]["radiance_rel_sd_rms"] == 0.01
         assert (s.ground_truths(rid)[0]["spp"], s.ground_truths(rid)[0]["spp_file"]) == (4, 48)
         out = s.export_json(rid, tmp_path / "run" / "scores.json")
         data = json.loads(out.read_text())  # strict JSON: NaN written as null
-        assert data["run"]["id"] == rid and len(data["scores"]) == 3
-        assert {x["value"] for x in data["scores"]} == {0.5, 0.7, None}
+        assert data["run"]["id"] == rid and len(data["scores"]) == 4
+        assert {x["value"] for x in data["scores"]} == {0.5, 0.7, 25.6, None}
 
 
 def test_job_result_replaces_and_resume_bookkeeping(tmp_path):

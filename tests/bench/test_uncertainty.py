@@ -314,3 +314,86 @@ def test_a_flip_marks_every_metric_of_the_algorithm_on_the_job():
                            ("s", "b", "x"): [1.0, 1.01, 1.02, 1.0]}}
     out = {(d["algorithm"], d["metric"]): d["unstable"] for d in attach(scores, reps)}
     assert out == {("a", "x"): True, ("a", "y"): True, ("b", "x"): False}
+
+
+class StoppedTask(ErrorTask):
+    """Two algorithms on one noisy image: ``smooth`` (its mean, converged) and ``stopped`` (the
+    same plus a jump that the last bits of its input decide, of a size proportional to the noise
+    it sees, and ``converged = 0``: an iteration stopped before its fixed point)."""
+
+    def builtin_algorithms(self):
+        return [Algorithm("smooth", self.name, lambda img: img), Algorithm("stopped", self.name, lambda img: img)]
+
+    def run_job(self, job, gts, *, seed=0, algorithms=(), quality=None):
+        import hashlib
+
+        gt = gts[job.scene]
+        img, calls = gt["radiance"], self.calls
+        book = ScoreBook(job, "x", algorithms)
+        for alg in algorithms:
+            calls.append((alg.name, gt.meta.get("replicate"), "perturbed" in gt.meta))
+            v = float(np.mean(img))
+            if alg.name == "stopped":
+                h = int.from_bytes(hashlib.blake2b(img.tobytes(), digest_size=8).digest(), "little")
+                v += 3 * float(np.std(img - gt["albedo"])) / math.sqrt(img.size) * np.random.default_rng(h).standard_normal()
+            book.add(alg.name, {"height_rmse": v, "converged": float(alg.name == "smooth")}, 0.0)
+        return JobResult(job, scores=book.scores)
+
+
+def test_a_score_chaotic_in_its_input_gets_its_standard_error_from_independent_draws():
+    """A score that jumps with the last bits of its input makes the replicates independent draws:
+    the jackknife then states too large an error (by about sqrt(G - 1)).  The rescoring on the
+    perturbed ground truth detects it, only for the algorithm that did not converge, and the SE
+    from the draws holds over 400 independent renders; the smooth algorithm keeps its jackknife."""
+    from pbrbench.uncertainty import bias_of
+
+    rng = np.random.default_rng(7)
+    truth = rng.uniform(0.2, 1.0, (12, 12, 3))
+    task = StoppedTask()
+    task.calls = []
+    algs = builtin_registry({task.name: task}).for_task(task.name)
+    job = task.jobs(None)[0]
+    vals, ses, jks, flags = {}, {}, {}, {}
+    for trial in range(400):
+        gts = {"s": noisy_gt(truth, 0.05, rng)}
+        task.calls.clear()
+        res = task.run_job(job, gts, algorithms=algs)
+        reps = replicate_scores(task, job, gts, seed=0, algorithms=algs, quality=get_quality("draft"), full=res.scores)
+        if trial == 0:   # one call on the perturbed ground truth, of the unconverged algorithm only
+            assert [c for c in task.calls if c[2]] == [("stopped", None, True)]
+            assert set(reps["perturbed"]) == {("s", "stopped", "height_rmse"), ("s", "stopped", "converged")}
+        for sc in attach([s.as_dict() for s in res.scores], reps):
+            if sc["metric"] != "height_rmse":
+                continue
+            a = sc["algorithm"]
+            vals.setdefault(a, []).append(sc["value"])
+            ses.setdefault(a, []).append(sc["uncertainty"])
+            jks.setdefault(a, []).append(jackknife(sc["value"], sc["replicates"])[0])
+            flags.setdefault(a, []).append(sc["chaotic"])
+            if sc["chaotic"]:
+                assert sc["dof"] == G and math.isnan(sc["bias"]) and math.isnan(bias_of(sc))
+    ratio = {a: np.std(vals[a], ddof=1) / math.sqrt(np.mean(np.square(ses[a]))) for a in vals}
+    ratio_jk = {a: np.std(vals[a], ddof=1) / math.sqrt(np.mean(np.square(jks[a]))) for a in vals}
+    assert np.mean([f is True for f in flags["stopped"]]) > 0.95
+    assert all(f is None for f in flags["smooth"]) and ses["smooth"] == jks["smooth"]
+    assert 0.85 < ratio["stopped"] < 1.15 and 0.85 < ratio["smooth"] < 1.15, ratio
+    assert ratio_jk["stopped"] < 0.7, ratio_jk      # what the jackknife alone would state
+
+
+def test_a_smooth_score_is_not_chaotic_under_the_perturbation():
+    """The chaos test on a smooth, nonlinear score: the perturbed value moves by eps (v_(0) - v)
+    to first order, so the estimate is the jackknife's, bias included; a jump makes it chaotic."""
+    from pbrbench.uncertainty import PERTURBATION, chaotic
+
+    v, reps = 2.0, [2.10, 1.95, 2.02, 1.97]
+    smooth = v + PERTURBATION * (reps[0] - v) + 1e-7
+    assert chaotic(v, reps, smooth) is False
+    assert estimate(v, reps, perturbed=smooth) == {**estimate(v, reps), "chaotic": False}
+    assert chaotic(v, reps, v + 0.05) is True and chaotic(v, reps, None) is None and chaotic(v, None, 2.5) is None
+    e = estimate(v, reps, perturbed=v + 0.05)
+    se, dof = math.sqrt((0.05 ** 2 / 2 + 0.75 * sum((r - np.mean(reps)) ** 2 for r in reps)) / 4), 4
+    assert e["uncertainty"] == pytest.approx(se) and e["dof"] == dof and math.isnan(e["bias"])
+    # a difference involving a chaotic score is not paired: its replicates are no jackknife series
+    x = {"value": v, "replicates": reps, "scene_hash": "h", "uncertainty": e["uncertainty"], "dof": 4.0, "chaotic": True}
+    ref = {"value": 1.0, "replicates": [1.01, 0.99, 1.0, 1.0], "scene_hash": "h", "uncertainty": 0.01, "dof": 3.0}
+    assert paired(x, ref)[0] == pytest.approx(math.hypot(e["uncertainty"], 0.01))

@@ -218,3 +218,20 @@ def test_the_console_summary_labels_a_row_over_fewer_scenes():
     assert any(line.strip().startswith("few (1 of 2 scenes)") for line in lines)
     assert not any(line.strip().startswith("m (") for line in lines)
     assert "its row's means are over its own scenes" in lines[-1]
+
+
+def test_a_chaotic_score_carries_no_bias_and_its_cell_says_so():
+    # a chaotic score's replicates are independent draws: their mean minus the value is no bias, so
+    # the cell is not noise-limited (its jackknife "bias" here would be 3 x 2.0 = 6 > SE), and it
+    # counts the chaotic scores (the report's tooltip names them)
+    rep = [18.0, 14.0, 19.0, 13.0]
+    scores = [s("cup", "local", 1.0, rep=[1.0, 1.0, 1.0, 1.0], dof=3, bias=0.0),
+              s("cup", "global", 10.0, unc=1.4, rep=rep, dof=4, bias=float("nan"), chaotic=True)]
+    (t,) = effect_tables(scores, INFO)
+    ref, eff = t["rows"][0]["cells"]
+    assert ref["chaotic"] == 0 and eff["chaotic"] == 1
+    assert not eff["noise_limited"] and math.isnan(eff["bias"])
+    assert eff["se"] == pytest.approx(math.hypot(1.4, 0.1))   # not paired: the two SEs in quadrature
+    plain = dict(scores[1], chaotic=None)
+    (t,) = effect_tables([scores[0], plain], INFO)
+    assert t["rows"][0]["cells"][1]["noise_limited"]   # the same replicates read as a jackknife: "biased"
