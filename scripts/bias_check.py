@@ -56,8 +56,8 @@ def main(argv=None) -> int:
         put most draft passes at 8 spp; scaling ``spp_scale`` instead gave them 12, 1.5x)."""
         factor: float = 1.0
 
-        def spp(self, spp: int) -> int:
-            return int(round(self.factor * draft.spp(spp)))
+        def spp(self, spp: int, groups: int | None = None) -> int:
+            return int(round(self.factor * draft.spp(spp, groups)))
 
         def render_key(self) -> dict:
             return {**super().render_key(), "spp_factor_of_draft": self.factor}
