@@ -734,7 +734,9 @@ class PredictionReader:
 
     ``errors`` maps job keys to the one-line reasons their predictions were scored as failed;
     ``replicate_errors`` those of the replicates' predictions that were refused (the score then
-    has no standard error); ``missing_replicates`` the jobs scored without replicate predictions.
+    has no standard error); ``missing_replicates`` the jobs scored without replicate predictions,
+    ``missing_perturbed`` those without predictions on the perturbed inputs (their ± is the
+    jackknife's, not tested for chaos: :func:`pbrbench.uncertainty.chaotic`).
     """
 
     def __init__(self, task, export_dir: Path, predictions_dir: Path, records: dict):
@@ -746,6 +748,7 @@ class PredictionReader:
         self.errors: dict[str, str] = {}
         self.replicate_errors: dict[str, str] = {}
         self.missing_replicates: set[str] = set()   # jobs scored without replicate predictions
+        self.missing_perturbed: set[str] = set()    # jobs without predictions on replicates/perturbed
         self.loaded: Path | None = None              # the predictions folder of the last call
         self.largest: float = 0.0                    # the largest |value| it read
 
@@ -788,7 +791,8 @@ class PredictionReader:
         self.loaded, self.largest = folder, 0.0
         if folder != self.folder(record):
             if not any(_find(folder, p.name) is not None for p in self.task.predictions):
-                self.missing_replicates.add(record["key"])
+                # without the perturbed set the score keeps its jackknife ±, untested for chaos
+                (self.missing_perturbed if str(folder).endswith(PERTURBED) else self.missing_replicates).add(record["key"])
                 raise _NoReplicate(f"{folder}: no prediction for this replicate")
             try:
                 return self._load(folder, inputs, record)

@@ -164,13 +164,6 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
             for k, v in vals.items():
                 reps.setdefault(k, [float("nan")] * G)[i] = v
         out["replicates"] = reps
-        chaos = _chaos_candidates(task, job, full, algorithms)
-        if chaos and any(g.varies(0) for g in gts.values()):
-            moved = {n: g.perturbed(PERTURBATION) for n, g in gts.items()}
-            vals = _values(task.run_job(job, moved, seed=seed, algorithms=chaos, quality=quality).scores)
-            names = {a.name for a in chaos}
-            out["perturbed"] = {k: v for k, v in vals.items() if k[1] in names}
-            _drop_failed(vals)
     if seed_dependent:
         noise: dict = {}
         seeds = noise_seeds(seed)
@@ -180,6 +173,14 @@ def replicate_scores(task, job, gts: dict, *, seed: int, algorithms, quality, fu
             for key, v in vals.items():
                 noise.setdefault(key, [float("nan")] * len(seeds))[k] = v
         out["rep_noise"] = noise
+    chaos = _chaos_candidates(task, job, full, algorithms) if "replicates" in out else []
+    if chaos and any(g.varies(0) for g in gts.values()):
+        # last: a plugin without predictions for this input set (an export's replicates/perturbed
+        # left out) is then not dropped from the other seeds' scoring
+        moved = {n: g.perturbed(PERTURBATION) for n, g in gts.items()}
+        vals = _values(task.run_job(job, moved, seed=seed, algorithms=chaos, quality=quality).scores)
+        names = {a.name for a in chaos}
+        out["perturbed"] = {k: v for k, v in vals.items() if k[1] in names}
     return out
 
 

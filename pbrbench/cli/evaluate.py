@@ -112,6 +112,10 @@ def _export(args, name: str, d: Path) -> int:
               "jobs/*/replicates/*/ folder too (same inputs, same outputs) to get it")
     elif not reader.replicate_errors:
         print("standard errors: from the predictions on every job's replicate inputs (delete-one-group jackknife)")
+    if m.get("replicates") and reader.missing_perturbed:
+        print(f"note: {len(reader.missing_perturbed)} of {len(m['jobs'])} job(s) have no predictions in "
+              "replicates/perturbed/: their ± is the jackknife's, not tested for an output that jumps with a change "
+              "far below the render noise; run your program there too to test it")
     if o.report:
         print(f"report: {o.report.resolve()}")
     return 1 if failed or reader.replicate_errors else 0

@@ -238,6 +238,20 @@ def test_evaluate_gives_the_standard_errors_when_the_program_ran_on_the_replicat
     # Woodham's least squares is smooth in them (not chaotic: the jackknife above stands)
     scored = [s for s in mine if s["metric"] not in ("failed", "converged")]
     assert all(math.isfinite(s["perturbed"]) and s["chaotic"] is False for s in scored)
+    # without predictions on the perturbed inputs: the same ± (the jackknife and the other seeds'
+    # part; the chaos test is skipped, not a failure), and the reader says which jobs lack them
+    import shutil
+
+    for rec in read_manifest(tmp_path / "export")["jobs"]:
+        shutil.rmtree(tmp_path / "export" / rec["folder"] / "replicates" / "perturbed")
+        (tmp_path / "export" / rec["folder"] / "replicates" / "perturbed").mkdir()
+    out, reader = evaluate_export(task, tmp_path / "export", name="mine", settings=settings_for(tmp_path / "c"),
+                                  source=Grouped(tmp_path / "cache"), log=lambda m: None)
+    assert not reader.errors and not reader.missing_replicates and len(reader.missing_perturbed) == 3
+    mine = [s for s in out.scores if s["algorithm"] == "mine"]
+    assert {(s["scene"], s["condition"], s["metric"]): (s["value"], s["uncertainty"], s["dof"], s["bias"])
+            for s in mine} == want
+    assert all(s["perturbed"] is None and s["chaotic"] is None for s in mine)
 
 
 def test_the_exported_files_are_open_formats_with_the_exact_values(tmp_path):
