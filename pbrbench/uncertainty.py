@@ -164,19 +164,19 @@ def mean_over_seeds(value: float, reps, rep_noise) -> tuple[float, list[float] |
     return m, (None if reps is None else [float(r) + (m - float(value)) for r in reps])
 
 
-def chaotic(value: float, reps, perturbed) -> bool | None:
+def chaotic(value: float, reps, perturbed, *, threshold: float = CHAOS_THRESHOLD) -> bool | None:
     """Whether a score is chaotic in its input: rescored on the ground truth moved by
     :data:`PERTURBATION` toward its replicate without group 0
     (:meth:`pbrbench.render.groundtruth.GroundTruth.perturbed`), a score smooth in its input
     moves by ``eps (v_(0) - v)`` to first order; one whose move differs from that by more than
-    :data:`CHAOS_THRESHOLD` of its jackknife standard error depends on far less than the render
-    noise (an iteration stopped before it converged, whose end point jumps with the last bits of
-    its input).  None when there is no perturbed value or no jackknife."""
+    ``threshold`` (:data:`CHAOS_THRESHOLD`) of its jackknife standard error depends on far less
+    than the render noise (an iteration stopped before it converged, whose end point jumps with
+    the last bits of its input).  None when there is no perturbed value or no jackknife."""
     se_j, _, dof_j = jackknife(value, reps)
     if not finite(perturbed) or not dof_j or not finite(se_j):
         return None
     e = (float(perturbed) - float(value)) - PERTURBATION * (float(reps[0]) - float(value))
-    return se_j > 0 and abs(e) > CHAOS_THRESHOLD * se_j
+    return se_j > 0 and abs(e) > threshold * se_j
 
 
 def draws(value: float, reps, perturbed) -> tuple[float, int]:

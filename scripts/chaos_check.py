@@ -29,6 +29,7 @@ from collections import defaultdict
 import numpy as np
 
 from pbrbench.uncertainty import PERTURBATION as EPS  # the runs' perturbation (1e-3)
+from pbrbench.uncertainty import chaotic, draws, jackknife
 
 
 def main(argv=None) -> int:
@@ -92,15 +93,13 @@ def main(argv=None) -> int:
         pred = defaultdict(list)
         n_chaotic = 0
         for v0, r, p, conv in rows:
-            ss = float(((r - r.mean()) ** 2).sum())
-            se2 = (G - 1) / G * ss
-            e = (p - v0) - EPS * (r[0] - v0)
-            chaotic = se2 > 0 and abs(e) > a.threshold * math.sqrt(se2)
-            draws = ((p - v0) ** 2 / 2 + (G - 1) / G * ss) / G
-            n_chaotic += chaotic
+            se2 = jackknife(v0, list(r))[0] ** 2
+            flag = bool(chaotic(v0, list(r), p, threshold=a.threshold))
+            var = draws(v0, list(r), p)[0] ** 2 if flag else se2
+            n_chaotic += flag
             pred["jk"].append(se2)
-            pred["draws"].append(draws if chaotic else se2)
-            pred["draws|conv0"].append(draws if chaotic and conv == 0.0 else se2)
+            pred["draws"].append(var)
+            pred["draws|conv0"].append(var if conv == 0.0 else se2)
         obs = float(np.var(v, ddof=1))
         floor = (1e-5 + 1e-4 * float(np.abs(v).mean())) ** 2
         if obs <= floor and np.mean(pred["jk"]) <= floor:
