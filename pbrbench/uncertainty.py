@@ -46,7 +46,7 @@ from functools import lru_cache
 CONFIDENCE = 0.95    # two-sided level of the intervals and of "a difference is an effect"
 # largest gap between sorted replicates / their range above which the replicates are bimodal
 # (a discrete choice flipped): the 99.9th percentile of the statistic for G Gaussian replicates
-# (Monte Carlo, 10^6 draws each; tests/test_uncertainty_stats.py re-measures it)
+# (Monte Carlo, 10^6 draws each; tests/bench/test_uncertainty.py re-measures it)
 GAP_CRITICAL = {3: 0.9994, 4: 0.9783, 5: 0.9242, 6: 0.8613, 7: 0.8028, 8: 0.7557}
 SIDES_FROM = 6           # from this many replicates on, a flip leaves at least two on each side of its gap
 UNSTABLE_MIN_GAP = 0.05  # a flip moves the score by at least this fraction of its size: smaller gaps

@@ -229,6 +229,21 @@ def test_a_flipped_discrete_choice_is_detected_and_smooth_scores_are_not():
     assert np.mean(flags) < 0.003
 
 
+def test_the_gap_criticals_are_the_99_9th_percentiles_of_gaussian_replicates():
+    """GAP_CRITICAL[G] re-measured: of 200,000 draws of G Gaussian replicates, the largest gap
+    between the sorted values over their range exceeds it in 0.1 % of the draws (200 expected;
+    a binomial SD of 14, so 130-270 holds at 5 SD; the 99th percentile would give 2,000)."""
+    from pbrbench.uncertainty import GAP_CRITICAL
+
+    rng = np.random.default_rng(2024)
+    n = 200_000
+    for G, crit in GAP_CRITICAL.items():
+        v = np.sort(rng.standard_normal((n, G)), axis=1)
+        stat = np.diff(v, axis=1).max(axis=1) / (v[:, -1] - v[:, 0])
+        above = int(np.sum(stat > crit))
+        assert 130 <= above <= 270, f"G = {G}: {above} of {n} above {crit} (expected 200)"
+
+
 @pytest.mark.render
 @pytest.mark.slow
 @pytest.mark.longest   # scheduled first (tests/conftest.py)
