@@ -173,6 +173,11 @@ def chaotic(value: float, reps, perturbed, *, threshold: float = CHAOS_THRESHOLD
     than the render noise (an iteration stopped before it converged, whose end point jumps with
     the last bits of its input).  None when there is no perturbed value or no jackknife."""
     se_j, _, dof_j = jackknife(value, reps)
+    return _chaotic(value, reps, perturbed, se_j, dof_j, threshold)
+
+
+def _chaotic(value, reps, perturbed, se_j, dof_j, threshold=CHAOS_THRESHOLD) -> bool | None:
+    """:func:`chaotic` given the jackknife's ``se_j`` and ``dof_j`` of ``value`` and ``reps``."""
     if not finite(perturbed) or not dof_j or not finite(se_j):
         return None
     e = (float(perturbed) - float(value)) - PERTURBATION * (float(reps[0]) - float(value))
@@ -208,7 +213,7 @@ def estimate(value: float, reps=None, rep_noise=None, *, mean: bool = False, per
     :func:`noise_part`; ``perturbed`` then moved with it).  A chaotic score (:func:`chaotic`)
     takes the render part of its error from :func:`draws` and has no bias estimate."""
     se_j, bias, dof_j = jackknife(value, reps)
-    chaos = chaotic(value, reps, perturbed) if dof_j else None
+    chaos = _chaotic(value, reps, perturbed, se_j, dof_j) if dof_j else None   # the jackknife once
     if chaos:
         se_j, dof_j = draws(value, reps, perturbed)
         bias = float("nan")
